@@ -1,0 +1,1 @@
+"""Subcommands of the rov-mav CLI, one module each."""

@@ -1,0 +1,162 @@
+"""Vehicle parameters: the YAML file, its validation, and the mass, added-mass and restoring quantities."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+
+from rov_mav import config
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
+Positive = Annotated[float, Field(gt=0)]
+NonNegative6 = Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=6, max_length=6)]
+
+DEFAULT_VEHICLE_FILE = "bluerov2_heavy.yaml"
+
+
+class _ThrusterSchema(config.StrictModel):
+    positions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
+    directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
+    time_constant: Annotated[float, Field(ge=0)]
+
+    @field_validator("directions")
+    @classmethod
+    def _unit(cls, directions: list[list[float]]) -> list[list[float]]:
+        for i, d in enumerate(directions):
+            if abs(float(np.linalg.norm(d)) - 1.0) > 1e-3:
+                raise ValueError(f"thruster {i + 1} direction is not a unit vector")
+        return directions
+
+
+class _VehicleSchema(config.StrictModel):
+    name: str
+    mass: Positive
+    volume: Positive
+    water_density: Positive
+    gravity: Positive
+    inertia: Annotated[list[Positive], Field(min_length=3, max_length=3)]
+    inertia_products: Vec3
+    center_of_gravity: Vec3
+    center_of_buoyancy: Vec3
+    added_mass: NonNegative6
+    linear_damping: NonNegative6
+    quadratic_damping: NonNegative6
+    size: Annotated[list[Positive], Field(min_length=3, max_length=3)]
+    thrusters: _ThrusterSchema
+
+    @model_validator(mode="after")
+    def _inertia_positive_definite(self) -> "_VehicleSchema":
+        ixy, iyz, ixz = self.inertia_products
+        ix, iy, iz = self.inertia
+        tensor = np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]])
+        if np.linalg.eigvalsh(tensor).min() <= 0:
+            raise ValueError("inertia: the inertia tensor is not positive definite")
+        return self
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """A rigid vehicle in water: everything the 6-DOF model (Eq. 2.7, Appendix I) needs, in SI units."""
+
+    name: str
+    mass: float
+    volume: float
+    water_density: float
+    gravity: float
+    inertia_tensor: np.ndarray        # (3, 3) about the CG
+    center_of_gravity: np.ndarray     # (3,)
+    center_of_buoyancy: np.ndarray    # (3,)
+    added_mass: np.ndarray            # (6,) positive magnitudes
+    linear_damping: np.ndarray        # (6,)
+    quadratic_damping: np.ndarray     # (6,)
+    size: np.ndarray                  # (3,) length, width, height
+    thruster_positions: np.ndarray    # (8, 3)
+    thruster_directions: np.ndarray   # (8, 3)
+    thruster_time_constant: float
+
+    @property
+    def weight(self) -> float:
+        """W = m g."""
+        return self.mass * self.gravity
+
+    @property
+    def buoyancy(self) -> float:
+        """B = rho g V (ERRATA 6)."""
+        return self.water_density * self.gravity * self.volume
+
+    @cached_property
+    def rigid_body_mass_matrix(self) -> np.ndarray:
+        """M_RB of Appendix I, with the inertia products."""
+        m = self.mass
+        xg, yg, zg = self.center_of_gravity
+        mrb = np.zeros((6, 6))
+        mrb[:3, :3] = m * np.eye(3)
+        s = m * np.array([[0.0, -zg, yg], [zg, 0.0, -xg], [-yg, xg, 0.0]])
+        mrb[:3, 3:] = -s
+        mrb[3:, :3] = s
+        mrb[3:, 3:] = self.inertia_tensor
+        return mrb
+
+    @cached_property
+    def mass_matrix(self) -> np.ndarray:
+        """M = M_RB + M_A, symmetric positive definite (Eq. 2.8)."""
+        return self.rigid_body_mass_matrix + np.diag(self.added_mass)
+
+    def scaled(self, factor: float) -> "Vehicle":
+        """The same vehicle with mass, inertia, added mass and damping multiplied by `factor` (model-error studies).
+
+        Volume scales too, so the buoyancy balance is kept."""
+        return Vehicle(
+            name=f"{self.name} x{factor:g}",
+            mass=self.mass * factor,
+            volume=self.volume * factor,
+            water_density=self.water_density,
+            gravity=self.gravity,
+            inertia_tensor=self.inertia_tensor * factor,
+            center_of_gravity=self.center_of_gravity,
+            center_of_buoyancy=self.center_of_buoyancy,
+            added_mass=self.added_mass * factor,
+            linear_damping=self.linear_damping * factor,
+            quadratic_damping=self.quadratic_damping * factor,
+            size=self.size,
+            thruster_positions=self.thruster_positions,
+            thruster_directions=self.thruster_directions,
+            thruster_time_constant=self.thruster_time_constant,
+        )
+
+
+def default_vehicle_path() -> Path:
+    """The shipped BlueROV2 Heavy parameter file."""
+    return Path(str(resources.files("rov_mav") / "data" / DEFAULT_VEHICLE_FILE))
+
+
+def load_vehicle(path: str | Path | None = None) -> Vehicle:
+    """Load and validate a vehicle file (default: the shipped BlueROV2 Heavy); ConfigError on any bad entry."""
+    path = Path(path) if path is not None else default_vehicle_path()
+    s = config.load(_VehicleSchema, path)
+    ixy, iyz, ixz = s.inertia_products
+    ix, iy, iz = s.inertia
+    return Vehicle(
+        name=s.name,
+        mass=s.mass,
+        volume=s.volume,
+        water_density=s.water_density,
+        gravity=s.gravity,
+        inertia_tensor=np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]]),
+        center_of_gravity=np.array(s.center_of_gravity, dtype=float),
+        center_of_buoyancy=np.array(s.center_of_buoyancy, dtype=float),
+        added_mass=np.array(s.added_mass, dtype=float),
+        linear_damping=np.array(s.linear_damping, dtype=float),
+        quadratic_damping=np.array(s.quadratic_damping, dtype=float),
+        size=np.array(s.size, dtype=float),
+        thruster_positions=np.array(s.thrusters.positions, dtype=float),
+        thruster_directions=np.array(s.thrusters.directions, dtype=float),
+        thruster_time_constant=s.thrusters.time_constant,
+    )
