@@ -11,7 +11,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from rov_mav import config
+from rov_mav import config, kernel
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
@@ -108,6 +108,19 @@ class Vehicle:
     def mass_matrix(self) -> np.ndarray:
         """M = M_RB + M_A, symmetric positive definite (Eq. 2.8)."""
         return self.rigid_body_mass_matrix + np.diag(self.added_mass)
+
+    def packed(self) -> np.ndarray:
+        """The flat float64 vector the compiled kernel reads (layout in `rov_mav.kernel`)."""
+        out = np.zeros(kernel.P_SIZE)
+        out[kernel.P_M:kernel.P_M + 36] = self.mass_matrix.ravel()
+        out[kernel.P_MINV:kernel.P_MINV + 36] = np.linalg.inv(self.mass_matrix).ravel()
+        out[kernel.P_DLIN:kernel.P_DLIN + 6] = self.linear_damping
+        out[kernel.P_DQUAD:kernel.P_DQUAD + 6] = self.quadratic_damping
+        out[kernel.P_W] = self.weight
+        out[kernel.P_B] = self.buoyancy
+        out[kernel.P_RG:kernel.P_RG + 3] = self.center_of_gravity
+        out[kernel.P_RB:kernel.P_RB + 3] = self.center_of_buoyancy
+        return out
 
     def scaled(self, factor: float) -> "Vehicle":
         """The same vehicle with mass, inertia, added mass and damping multiplied by `factor` (model-error studies).

@@ -1,0 +1,82 @@
+"""The simulated water: constant and periodic disturbance, a slow current, sensor noise (simulation only)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import Field
+
+from rov_mav import config, kernel
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class NoiseSchema(config.StrictModel):
+    position: NonNegative = 0.0   # m, std dev on x, y, z
+    attitude: NonNegative = 0.0   # rad, on phi, theta, psi
+    velocity: NonNegative = 0.0   # m/s, on u, v, w
+    rate: NonNegative = 0.0       # rad/s, on p, q, r
+
+
+class EnvironmentSchema(config.StrictModel):
+    disturbance: Vec6 = [0.0] * 6             # tau_d, body frame, N and N m (Eq. 2.7)
+    disturbance_amplitude: Vec6 = [0.0] * 6   # amplitude of a sinusoid added to tau_d
+    disturbance_period: NonNegative = 0.0     # s; 0 = no sinusoid
+    current: Vec3 = [0.0] * 3                 # NED water velocity, m/s
+    noise: NoiseSchema = NoiseSchema()
+
+
+class _EnvironmentFile(config.StrictModel):
+    environment: EnvironmentSchema
+
+
+@dataclass(frozen=True)
+class Environment:
+    """What the simulated vehicle meets and the controller does not know."""
+
+    disturbance: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    disturbance_amplitude: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    disturbance_period: float = 0.0
+    current: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    noise: np.ndarray = field(default_factory=lambda: np.zeros(4))   # position, attitude, velocity, rate
+
+    @classmethod
+    def from_schema(cls, s: EnvironmentSchema) -> "Environment":
+        return cls(
+            disturbance=np.array(s.disturbance, dtype=float),
+            disturbance_amplitude=np.array(s.disturbance_amplitude, dtype=float),
+            disturbance_period=s.disturbance_period,
+            current=np.array(s.current, dtype=float),
+            noise=np.array([s.noise.position, s.noise.attitude, s.noise.velocity, s.noise.rate]),
+        )
+
+    @property
+    def constant_disturbance(self) -> np.ndarray | None:
+        """tau_d when it is constant (what an estimate should converge to), else None."""
+        if self.disturbance_period > 0 and np.any(self.disturbance_amplitude):
+            return None
+        return self.disturbance
+
+    def packed(self) -> np.ndarray:
+        """The flat vector the compiled kernel reads (layout in `rov_mav.kernel`)."""
+        out = np.zeros(kernel.E_SIZE)
+        out[kernel.E_DIST:kernel.E_DIST + 6] = self.disturbance
+        out[kernel.E_AMP:kernel.E_AMP + 6] = self.disturbance_amplitude
+        out[kernel.E_PERIOD] = self.disturbance_period
+        out[kernel.E_CURRENT:kernel.E_CURRENT + 3] = self.current
+        out[kernel.E_NOISE:kernel.E_NOISE + 4] = self.noise
+        return out
+
+
+def load_environment(path: str | Path) -> Environment:
+    """An environment from a file holding an `environment:` block (a mission file, or just that block)."""
+    data = config.read_yaml(path)
+    if "environment" not in data:
+        raise config.ConfigError(f"{path}: environment: missing")
+    block = config.parse(_EnvironmentFile, {"environment": data["environment"]}, path)
+    return Environment.from_schema(block.environment)

@@ -1,0 +1,215 @@
+"""Missions: a YAML path (goto, hold, line segments) turned into a smooth reference eta_d(t), eta_dot_d, eta_ddot_d.
+
+Every segment starts and ends with zero velocity and acceleration unless it is a line told not to ramp, so
+eta_d, eta_dot_d and eta_ddot_d are continuous across segment boundaries (stop-and-turn corners). Roll and pitch
+references are zero. Positions are NED metres; headings radians (or strings with 'deg'/'rad').
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from rov_mav import config
+from rov_mav.environment import Environment, EnvironmentSchema
+from rov_mav.units import Angle
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Positive = Annotated[float, Field(gt=0)]
+
+REFERENCE_COLUMNS = 18   # eta_d (6), eta_dot_d (6), eta_ddot_d (6)
+
+
+class _StartSchema(config.StrictModel):
+    position: Vec3
+    heading: Angle = 0.0
+
+
+class _SegmentSchema(config.StrictModel):
+    goto: Vec3 | None = None        # NED waypoint, m
+    hold: Positive | None = None    # s
+    line: Vec3 | None = None        # constant NED velocity, m/s
+    speed: Positive | None = None   # m/s, cruise speed of a goto
+    duration: Positive | None = None  # s, of a line
+    heading: Angle | None = None    # heading to reach by the end of a goto or hold
+    ramp_up: bool = True            # line only: false starts at full velocity (the report's Eq. 3.1)
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> "_SegmentSchema":
+        kinds = [k for k in ("goto", "hold", "line") if getattr(self, k) is not None]
+        if len(kinds) != 1:
+            raise ValueError("each path entry needs exactly one of goto, hold, line")
+        kind = kinds[0]
+        if kind == "goto" and self.speed is None:
+            raise ValueError("a goto needs a speed (m/s)")
+        if kind != "goto" and self.speed is not None:
+            raise ValueError(f"speed applies to goto, not {kind}")
+        if kind == "line" and self.duration is None:
+            raise ValueError("a line needs a duration (s)")
+        if kind != "line" and self.duration is not None:
+            raise ValueError(f"duration applies to line, not {kind} (a hold's value is its duration)")
+        if kind == "line" and self.heading is not None:
+            raise ValueError("a line keeps the current heading; turn in a hold before it")
+        if kind == "line" and math.hypot(*self.line) == 0:
+            raise ValueError("a line needs a non-zero velocity")
+        return self
+
+
+class _LimitsSchema(config.StrictModel):
+    max_depth: Positive | None = None            # m
+    max_tracking_error: Positive | None = None   # m
+    max_thrust: Positive | None = None           # N per thruster
+
+
+class _MissionSchema(config.StrictModel):
+    name: str
+    description: str = ""
+    start: _StartSchema
+    ramp_time: Positive = 2.0
+    path: Annotated[list[_SegmentSchema], Field(min_length=1)]
+    environment: EnvironmentSchema = EnvironmentSchema()
+    limits: _LimitsSchema = _LimitsSchema()
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Motion from pose p0 (x, y, z, psi) to p1 along a 1-D speed profile over [t0, t0 + duration]."""
+
+    t0: float
+    duration: float
+    p0: np.ndarray        # (4,) x, y, z, psi
+    p1: np.ndarray        # (4,)
+    ramp_in: float        # s, smooth speed ramp at the start (0: starts at full speed)
+    ramp_out: float       # s, at the end (0: ends at full speed)
+    extrapolate: bool     # keep moving at the final velocity after the end (a last line without ramp-out)
+
+    def progress(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """sigma(tau), its first and second derivatives, sigma from 0 to 1 (tau in s since t0).
+
+        Speed profile: a smoothstep ramp h(u) = 3u^2 - 2u^3 up, a cruise, a ramp down; continuous acceleration.
+        Holds (no translation) use the same profile with both ramps spanning half the duration each."""
+        T, ri, ro = self.duration, self.ramp_in, self.ramp_out
+        speed = 1.0 / (T - 0.5 * (ri + ro))          # normalised cruise speed
+        pos = np.empty_like(tau)
+        vel = np.empty_like(tau)
+        acc = np.empty_like(tau)
+        up = tau < ri
+        down = tau > T - ro
+        mid = ~(up | down)
+        u = tau[up] / ri if ri > 0 else tau[up]
+        pos[up] = speed * ri * (u**3 - 0.5 * u**4)
+        vel[up] = speed * (3 * u**2 - 2 * u**3)
+        acc[up] = speed / ri * (6 * u - 6 * u**2) if ri > 0 else 0.0
+        pos[mid] = speed * (0.5 * ri + (tau[mid] - ri))
+        vel[mid] = speed
+        acc[mid] = 0.0
+        u = (T - tau[down]) / ro if ro > 0 else tau[down]
+        pos[down] = 1.0 - speed * ro * (u**3 - 0.5 * u**4)
+        vel[down] = speed * (3 * u**2 - 2 * u**3)
+        acc[down] = -speed / ro * (6 * u - 6 * u**2) if ro > 0 else 0.0
+        return pos, vel, acc
+
+
+class Mission:
+    """A validated mission: its reference trajectory, environment (simulation only) and limits (runs)."""
+
+    def __init__(self, spec: _MissionSchema, source: str):
+        self.spec = spec
+        self.source = source
+        self.name = spec.name
+        self.environment = Environment.from_schema(spec.environment)
+        self.limits = spec.limits
+        self.segments = _build_segments(spec, source)
+        self.duration = self.segments[-1].t0 + self.segments[-1].duration
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        """eta at t = 0, (6,)."""
+        x, y, z = self.spec.start.position
+        return np.array([x, y, z, 0.0, 0.0, self.spec.start.heading])
+
+    def reference(self, t: np.ndarray | float) -> np.ndarray:
+        """[eta_d, eta_dot_d, eta_ddot_d] at times t (s), shape t.shape + (18,).
+
+        Before the first segment: the start pose; after the last: its end pose (or the line continued)."""
+        t = np.asarray(t, dtype=float)
+        flat = np.atleast_1d(t).ravel()
+        out = np.zeros((flat.size, REFERENCE_COLUMNS))
+        out[:, [0, 1, 2, 5]] = self.segments[0].p0
+        for i, seg in enumerate(self.segments):
+            last = i == len(self.segments) - 1
+            mask = flat >= seg.t0 if last else (flat >= seg.t0) & (flat < seg.t0 + seg.duration)
+            if not mask.any():
+                continue
+            tau = flat[mask] - seg.t0
+            beyond = tau > seg.duration
+            delta = seg.p1 - seg.p0
+            sigma, dsigma, ddsigma = seg.progress(np.minimum(tau, seg.duration))
+            if seg.extrapolate:
+                sigma = sigma + np.where(beyond, (tau - seg.duration) * dsigma, 0.0)
+            else:
+                dsigma = np.where(beyond, 0.0, dsigma)
+                ddsigma = np.where(beyond, 0.0, ddsigma)
+            cols = [0, 1, 2, 5]
+            out[np.ix_(mask, cols)] = seg.p0 + sigma[:, None] * delta
+            out[np.ix_(mask, [c + 6 for c in cols])] = dsigma[:, None] * delta
+            out[np.ix_(mask, [c + 12 for c in cols])] = ddsigma[:, None] * delta
+        return out.reshape(t.shape + (REFERENCE_COLUMNS,))
+
+    def sampled_reference(self, dt: float, duration: float | None = None) -> np.ndarray:
+        """The reference at t_k = k dt, k = 0..N, N = round(duration / dt): (N + 1, 18)."""
+        duration = self.duration if duration is None else duration
+        n = int(round(duration / dt))
+        return self.reference(np.arange(n + 1) * dt)
+
+    def progress(self, t: float) -> float:
+        """Fraction of the mission's planned duration elapsed at t, in [0, 1]."""
+        return min(max(t / self.duration, 0.0), 1.0)
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
+    pose = np.array([*spec.start.position, spec.start.heading], dtype=float)
+    t = 0.0
+    segments: list[Segment] = []
+    for i, entry in enumerate(spec.path):
+        where = f"{source}: path[{i}]"
+        last = i == len(spec.path) - 1
+        if entry.goto is not None:
+            target = np.array([*entry.goto, pose[3]])
+            if entry.heading is not None:
+                target[3] = pose[3] + _wrap(entry.heading - pose[3])
+            length = float(np.linalg.norm(target[:3] - pose[:3]))
+            if length < 1e-6:
+                raise config.ConfigError(f"{where}.goto: zero-length segment (same point as the previous one)")
+            ramp = min(spec.ramp_time, length / entry.speed)
+            seg = Segment(t, length / entry.speed + ramp, pose, target, ramp, ramp, False)
+        elif entry.hold is not None:
+            target = pose.copy()
+            if entry.heading is not None:
+                target[3] = pose[3] + _wrap(entry.heading - pose[3])
+            seg = Segment(t, entry.hold, pose, target, 0.5 * entry.hold, 0.5 * entry.hold, False)
+        else:
+            velocity = np.array(entry.line)
+            ramp_in = min(spec.ramp_time, 0.5 * entry.duration) if entry.ramp_up else 0.0
+            ramp_out = 0.0 if last else min(spec.ramp_time, 0.5 * entry.duration)
+            travel = entry.duration - 0.5 * (ramp_in + ramp_out)
+            target = np.array([*(pose[:3] + velocity * travel), pose[3]])
+            seg = Segment(t, entry.duration, pose, target, ramp_in, ramp_out, last and ramp_out == 0.0)
+        segments.append(seg)
+        t += seg.duration
+        pose = seg.p1
+    return segments
+
+
+def load_mission(path: str | Path) -> Mission:
+    """Load and validate a mission file; ConfigError (file, key, reason) before anything runs."""
+    return Mission(config.load(_MissionSchema, path), str(path))

@@ -1,0 +1,327 @@
+"""Thrusters: the 6x8 allocation matrix, the T200 PWM <-> thrust map, and wrench <-> thrust allocation.
+
+Used in both directions: the simulator bridge turns 8 PWMs into thrusts (`T200.thrust`) and a body wrench
+(`Allocator.wrench`); the controller turns a wrench into thrusts (`Allocator.thrusts`) and 8 PWMs (`T200.pwm`).
+
+Conventions: body frame FRD (x forward, y starboard, z down), SI units (N, N m, V, A), PWM in microseconds.
+A wrench is [X, Y, Z, K, M, N] (force, then moment about the body origin). Thrust f_i > 0 means PWM > 1500 and
+pushes the vehicle along the thruster's unit vector e_i; f_i < 0 (PWM < 1500) pushes along -e_i.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from rov_mav.vehicle import Vehicle
+
+T200_DATA_FILE = "t200_performance.csv"
+NEUTRAL_PWM = 1500.0
+
+
+def allocation_matrix(positions: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """The thrust-configuration matrix B, (6, n): column i = [e_i ; r_i x e_i], so that wrench = B @ thrusts.
+
+    positions: (n, 3) thruster positions r_i in m; directions: (n, 3) unit vectors e_i (body frame FRD)."""
+    r = np.asarray(positions, dtype=float)
+    e = np.asarray(directions, dtype=float)
+    if r.ndim != 2 or r.shape[1] != 3 or e.shape != r.shape:
+        raise ValueError(f"positions and directions must both be (n, 3), got {r.shape} and {e.shape}")
+    return np.vstack([e.T, np.cross(r, e).T])
+
+
+# --------------------------------------------------------------------------------------------------------------
+# T200 thruster map
+
+
+@dataclass(frozen=True)
+class _Curve:
+    """The T200 at one supply voltage, on the data's PWM grid; built (and cached) by `T200._build_curve`.
+
+    force: (P,) N, monotone non-decreasing in PWM; current: (P,) A; dead_band: (low, high) PWM, force == 0 there.
+    forward_thrust/forward_pwm: (L,) non-decreasing thrust from 0 at the upper edge up to 1900 us, and its PWMs;
+    reverse_thrust/reverse_pwm: the same for reverse thrust magnitudes, from the lower edge down to 1100 us."""
+
+    force: np.ndarray
+    current: np.ndarray
+    dead_band: tuple[float, float]
+    forward_thrust: np.ndarray
+    forward_pwm: np.ndarray
+    reverse_thrust: np.ndarray
+    reverse_pwm: np.ndarray
+
+
+def _invert_branch(thrust: np.ndarray, branch_thrust: np.ndarray, branch_pwm: np.ndarray) -> np.ndarray:
+    """PWM giving `thrust` (any shape, >= 0) on one side of the dead band, by linear interpolation.
+
+    branch_thrust: (L,) non-decreasing thrust magnitudes from 0 at the dead band's edge outward, strictly positive
+    after index 0; branch_pwm: (L,) the matching PWMs. A thrust on a flat run maps to the run's PWM nearest neutral;
+    a thrust beyond the largest maps to where the largest is first reached."""
+    x = np.clip(thrust, 0.0, branch_thrust[-1])
+    j = np.clip(np.searchsorted(branch_thrust, x, side="left"), 1, len(branch_thrust) - 1)
+    t0, t1 = branch_thrust[j - 1], branch_thrust[j]   # t0 < x <= t1 for x > 0, so t1 > t0
+    p0, p1 = branch_pwm[j - 1], branch_pwm[j]
+    return p0 + (x - t0) / (t1 - t0) * (p1 - p0)
+
+
+def _monotone(force: np.ndarray, pwm: np.ndarray) -> np.ndarray:
+    """`force` (P,) made non-decreasing in PWM by a cumulative max of |force| outward from neutral on each side."""
+    fixed = force.copy()
+    up = pwm >= NEUTRAL_PWM
+    down = ~up
+    fixed[up] = np.maximum.accumulate(force[up])
+    fixed[down] = -np.maximum.accumulate(-force[down][::-1])[::-1]
+    return fixed
+
+
+class T200:
+    """Blue Robotics T200 thrust and current against PWM and supply voltage, from its measured data.
+
+    The data are sheets at a few voltages (10..20 V), each on the same PWM grid (1100..1900 us). Between grid points
+    and between sheets everything is linear interpolation; voltages outside the sheets are clamped to the nearest
+    one and PWMs outside the grid to its ends.
+
+    Monotonicity: the measured force is not strictly monotone in PWM everywhere (a few 0.03-0.13 N dips near full
+    throttle and in one mid-range point at 10 V). Each sheet's force is therefore replaced, once, by the cumulative
+    max of |force| outward from neutral on each side (it moves five of the 1206 points, by at most 0.134 N).
+    `thrust` and `pwm` both use this corrected curve, so thrust(pwm(f)) == f over the whole achievable range; on
+    the short flat runs the correction creates, `pwm` returns the run's PWM nearest neutral. A convex blend of two
+    monotone sheets is monotone, so all this holds at every voltage.
+
+    Dead band: the PWMs where the force is exactly 0 (about 1464-1536 us at 12 V, 1472-1528 us at 16 V). Between two
+    sheets it is the PWMs that are dead in both. `pwm(0)` is exactly 1500; any non-zero thrust, however small, maps
+    to a PWM at or just outside the dead band's edge, never inside it.
+    """
+
+    def __init__(self, voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray, current: np.ndarray):
+        """voltages: (V,) V, increasing; pwm: (P,) us, increasing, contains 1500; force: (V, P) N; current: (V, P) A."""
+        self.voltages = np.asarray(voltages, dtype=float)
+        self.pwm_grid = np.asarray(pwm, dtype=float)
+        force = np.asarray(force, dtype=float)
+        _check_sheets(self.voltages, self.pwm_grid, force)
+        self.force_table = np.array([_monotone(f, self.pwm_grid) for f in force])   # (V, P) N, corrected
+        self.current_table = np.asarray(current, dtype=float)                       # (V, P) A
+        self._curve = functools.lru_cache(maxsize=64)(self._build_curve)
+
+    @classmethod
+    def from_csv(cls, path: str | Path) -> "T200":
+        """Read a CSV with columns voltage_v, pwm_us, current_a, force_n (others ignored)."""
+        table = np.genfromtxt(path, delimiter=",", names=True)
+        voltages = np.unique(table["voltage_v"])
+        sheets = [table[table["voltage_v"] == v] for v in voltages]
+        sheets = [s[np.argsort(s["pwm_us"])] for s in sheets]
+        pwm = sheets[0]["pwm_us"]
+        if any(not np.array_equal(s["pwm_us"], pwm) for s in sheets):
+            raise ValueError(f"{path}: the voltage sheets do not share one PWM grid")
+        return cls(
+            voltages,
+            pwm,
+            np.array([s["force_n"] for s in sheets]),
+            np.array([s["current_a"] for s in sheets]),
+        )
+
+    # -- public map ------------------------------------------------------------------------------------------
+
+    def thrust(self, pwm: np.ndarray | float, voltage: float) -> np.ndarray:
+        """Thrust in N (negative = reverse) for PWM(s) in us of any shape, at a battery voltage in V."""
+        return np.interp(pwm, self.pwm_grid, self._curve(float(voltage)).force)
+
+    def pwm(self, thrust: np.ndarray | float, voltage: float) -> np.ndarray:
+        """PWM in us (float, within [1100, 1900]) giving thrust(s) in N of any shape, at a voltage in V.
+
+        0 -> exactly 1500; beyond the achievable range -> the PWM of the largest thrust; see the class docstring."""
+        t = np.asarray(thrust, dtype=float)
+        if not np.all(np.isfinite(t)):
+            raise ValueError("thrust must be finite")
+        c = self._curve(float(voltage))
+        forward = _invert_branch(t, c.forward_thrust, c.forward_pwm)
+        reverse = _invert_branch(-t, c.reverse_thrust, c.reverse_pwm)
+        return np.where(t > 0, forward, np.where(t < 0, reverse, NEUTRAL_PWM))
+
+    def current(self, pwm: np.ndarray | float, voltage: float) -> np.ndarray:
+        """Current drawn in A at PWM(s) in us of any shape and a voltage in V (0 in the dead band)."""
+        return np.interp(pwm, self.pwm_grid, self._curve(float(voltage)).current)
+
+    def max_forward(self, voltage: float) -> float:
+        """Largest forward thrust in N (at 1900 us) at a voltage in V."""
+        return float(self._curve(float(voltage)).force[-1])
+
+    def max_reverse(self, voltage: float) -> float:
+        """Largest reverse thrust magnitude in N (positive; at 1100 us) at a voltage in V: ~78 % of forward."""
+        return float(-self._curve(float(voltage)).force[0])
+
+    def dead_band(self, voltage: float) -> tuple[float, float]:
+        """(low, high) PWM in us: the outermost grid PWMs around 1500 where the thrust is exactly 0."""
+        return self._curve(float(voltage)).dead_band
+
+    # -- construction ----------------------------------------------------------------------------------------
+
+    def _blend(self, table: np.ndarray, voltage: float) -> np.ndarray:
+        """Row of `table` (V, P) linearly interpolated at `voltage`, clamped to the sheets' range."""
+        if not np.isfinite(voltage):
+            raise ValueError(f"voltage must be finite, got {voltage}")
+        v = float(np.clip(voltage, self.voltages[0], self.voltages[-1]))
+        k = int(np.clip(np.searchsorted(self.voltages, v, side="right") - 1, 0, len(self.voltages) - 2))
+        w = (v - self.voltages[k]) / (self.voltages[k + 1] - self.voltages[k])
+        return (1.0 - w) * table[k] + w * table[k + 1]
+
+    def _build_curve(self, voltage: float) -> _Curve:
+        force = self._blend(self.force_table, voltage)
+        zero = np.flatnonzero(force == 0.0)
+        low, high = zero[0], zero[-1]
+        return _Curve(
+            force=force,
+            current=self._blend(self.current_table, voltage),
+            dead_band=(float(self.pwm_grid[low]), float(self.pwm_grid[high])),
+            forward_thrust=force[high:],
+            forward_pwm=self.pwm_grid[high:],
+            reverse_thrust=-force[low::-1],
+            reverse_pwm=self.pwm_grid[low::-1],
+        )
+
+
+def _check_sheets(voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray) -> None:
+    """Raise ValueError unless every sheet is reverse below, zero in one band around, and forward above 1500 us."""
+    if len(voltages) < 2 or np.any(np.diff(voltages) <= 0):
+        raise ValueError("T200 data: need at least two sheets at increasing voltages")
+    if np.any(np.diff(pwm) <= 0) or NEUTRAL_PWM not in pwm:
+        raise ValueError("T200 data: the PWM grid must be increasing and contain 1500 us")
+    if force.shape != (len(voltages), len(pwm)):
+        raise ValueError(f"T200 data: force must be {(len(voltages), len(pwm))}, got {force.shape}")
+    for v, f in zip(voltages, force):
+        zero = np.flatnonzero(f == 0.0)
+        one_band = len(zero) > 0 and np.all(f[zero[0]: zero[-1] + 1] == 0.0)
+        if not one_band or not pwm[zero[0]] <= NEUTRAL_PWM <= pwm[zero[-1]]:
+            raise ValueError(f"T200 data at {v:g} V: the zero-force PWMs are not one band around 1500 us")
+        if np.any(f[: zero[0]] >= 0) or np.any(f[zero[-1] + 1:] <= 0):
+            raise ValueError(f"T200 data at {v:g} V: force has the wrong sign outside the dead band")
+
+
+@functools.cache
+def load_t200(path: str | Path | None = None) -> T200:
+    """The T200 model from `path`, or from the shipped Blue Robotics data (rov_mav/data/t200_performance.csv).
+
+    Cached: each path is read once per process."""
+    if path is None:
+        path = Path(str(resources.files("rov_mav") / "data" / T200_DATA_FILE))
+    return T200.from_csv(path)
+
+
+def pwms_to_thrusts(pwms: np.ndarray, voltage: float, t200: T200 | None = None) -> np.ndarray:
+    """Thrusts (..., n) in N of n thrusters at PWMs (..., n) in us and a voltage in V (default: shipped T200)."""
+    return (t200 or load_t200()).thrust(pwms, voltage)
+
+
+def thrusts_to_pwms(thrusts: np.ndarray, voltage: float, t200: T200 | None = None) -> np.ndarray:
+    """PWMs (..., n) in us (float; round before sending) for thrusts (..., n) in N at a voltage in V."""
+    return (t200 or load_t200()).pwm(thrusts, voltage)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Allocation
+
+
+@dataclass(frozen=True)
+class AllocationInfo:
+    """How close an allocation came to the requested wrench. Shapes: (6,) / scalar, or (N, 6) / (N,) for a batch.
+
+    wrench: achieved B f; residual: tau - B f (N, N m); residual_norm: ||tau - B f||_2 (unweighted);
+    saturated: True where the least-squares (pseudo-inverse) thrusts broke a limit and the bounded solver ran."""
+
+    wrench: np.ndarray
+    residual: np.ndarray
+    residual_norm: np.ndarray | float
+    saturated: np.ndarray | bool
+
+
+class Allocator:
+    """Maps a body wrench to thruster thrusts within per-thruster limits, and thrusts back to a wrench.
+
+    Strategy for `thrusts(tau)`:
+    1. The pseudo-inverse (minimum-norm least-squares) solution f = B+ tau, precomputed; with B of full row rank it
+       reproduces tau exactly. If it is within [f_min, f_max] it is the answer (a few microseconds).
+    2. Otherwise bounded least squares (scipy's BVLS): the f in the box minimising ||W (B f - tau)||_2.
+       Why not uniform scaling of tau: B (6x8) has a two-dimensional null space, so a wrench whose pseudo-inverse
+       solution breaks a limit is often still achievable exactly (the solver shifts thrust along the null space),
+       and when it is not, BVLS gives the nearest achievable wrench: its (weighted) residual is never larger than
+       that of the scaled wrench s tau (which is also in the box), and it does not give up heave or attitude
+       authority because surge saturated. The price: the achieved wrench need not be parallel to tau. `info`
+       reports the achieved wrench and residual so the caller can see (and log) what was lost.
+       W = diag(weights) sets which axes give way first; with the default (all ones) 1 N and 1 N m count the same,
+       so forces (tens of N) dominate moments (a few N m); raise the roll/pitch weights to protect attitude.
+    Rebuild the allocator (about 0.2 ms) when the limits change, e.g. with the battery voltage.
+    """
+
+    def __init__(self, matrix: np.ndarray, f_min: np.ndarray, f_max: np.ndarray, weights: np.ndarray | None = None):
+        """matrix: B (6, n); f_min (n,) N, <= 0 (reverse limits); f_max (n,) N, >= 0; weights (6,) > 0 or None."""
+        self.matrix = np.asarray(matrix, dtype=float)
+        n = self.matrix.shape[1]
+        self.f_min = np.broadcast_to(np.asarray(f_min, dtype=float), (n,)).copy()
+        self.f_max = np.broadcast_to(np.asarray(f_max, dtype=float), (n,)).copy()
+        if self.matrix.shape[0] != 6 or np.linalg.matrix_rank(self.matrix) < 6:
+            raise ValueError(f"allocation matrix must be 6 x n of rank 6, got {self.matrix.shape}")
+        if np.any(self.f_min > 0) or np.any(self.f_max < 0):
+            raise ValueError("thrust limits must satisfy f_min <= 0 <= f_max")
+        self.weights = np.ones(6) if weights is None else np.asarray(weights, dtype=float)
+        if self.weights.shape != (6,) or np.any(self.weights <= 0):
+            raise ValueError("weights must be 6 positive numbers")
+        self.pinv = np.linalg.pinv(self.matrix)
+        self._weighted_matrix = self.weights[:, None] * self.matrix
+
+    @classmethod
+    def for_vehicle(
+        cls, vehicle: Vehicle, voltage: float, t200: T200 | None = None, weights: np.ndarray | None = None
+    ) -> "Allocator":
+        """Allocator for `vehicle`'s thrusters, limited to the T200's thrust range at `voltage` V."""
+        t200 = t200 or load_t200()
+        n = len(vehicle.thruster_positions)
+        return cls(
+            allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions),
+            np.full(n, -t200.max_reverse(voltage)),
+            np.full(n, t200.max_forward(voltage)),
+            weights,
+        )
+
+    def wrench(self, thrusts: np.ndarray) -> np.ndarray:
+        """Body wrench (..., 6) in N, N m from thrusts (..., n) in N."""
+        return np.asarray(thrusts, dtype=float) @ self.matrix.T
+
+    def thrusts(self, tau: np.ndarray) -> tuple[np.ndarray, AllocationInfo]:
+        """Thrusts (n,) in N for a wrench tau (6,), or (N, n) for a batch (N, 6); see the class docstring."""
+        tau = np.asarray(tau, dtype=float)
+        f = tau @ self.pinv.T
+        outside = np.any((f < self.f_min) | (f > self.f_max), axis=-1)
+        if tau.ndim == 1:
+            outside = bool(outside)
+            if outside:
+                f = self._bounded(tau)
+        else:
+            for i in np.flatnonzero(outside):
+                f[i] = self._bounded(tau[i])
+        achieved = self.wrench(f)
+        residual = tau - achieved
+        norm = np.linalg.norm(residual, axis=-1)
+        info = AllocationInfo(
+            wrench=achieved,
+            residual=residual,
+            residual_norm=float(norm) if tau.ndim == 1 else norm,
+            saturated=outside,
+        )
+        return f, info
+
+    def _bounded(self, tau: np.ndarray) -> np.ndarray:
+        """Thrusts (n,) in [f_min, f_max] minimising ||W (B f - tau)||_2 for one wrench tau (6,)."""
+        result = lsq_linear(self._weighted_matrix, self.weights * tau, bounds=(self.f_min, self.f_max), method="bvls")
+        return np.clip(result.x, self.f_min, self.f_max)
+
+
+def allocate(
+    matrix: np.ndarray, tau: np.ndarray, f_min: np.ndarray, f_max: np.ndarray
+) -> tuple[np.ndarray, AllocationInfo]:
+    """One-off allocation: `Allocator(matrix, f_min, f_max).thrusts(tau)`. Build an Allocator to call it in a loop."""
+    return Allocator(matrix, f_min, f_max).thrusts(tau)

@@ -1,0 +1,32 @@
+"""Angles in configuration files: radians by default, or an explicit unit ('90 deg', '1.57 rad')."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any
+
+from pydantic import BeforeValidator
+
+
+def parse_angle(value: Any) -> float:
+    """Return radians from a number (radians) or a string 'VALUE deg' / 'VALUE rad'.
+
+    A bare number beyond 2 pi is refused: it is almost certainly degrees written without the unit."""
+    if isinstance(value, bool):
+        raise ValueError("expected an angle, e.g. 1.57 (radians) or '90 deg'")
+    if isinstance(value, (int, float)):
+        if abs(value) > 2 * math.pi:
+            raise ValueError(f"{value} is more than 2 pi radians: degrees need a unit, e.g. '{value} deg'")
+        return float(value)
+    if isinstance(value, str):
+        parts = value.split()
+        if len(parts) == 2 and parts[1] in ("deg", "rad"):
+            try:
+                number = float(parts[0])
+            except ValueError:
+                raise ValueError(f"'{value}' is not an angle like '90 deg' or '1.57 rad'") from None
+            return math.radians(number) if parts[1] == "deg" else number
+    raise ValueError(f"'{value}' is not an angle like 1.57 (radians), '90 deg' or '1.57 rad'")
+
+
+Angle = Annotated[float, BeforeValidator(parse_angle)]
