@@ -3,7 +3,7 @@
 Every path that moves the vehicle model or runs the law goes through these functions: the offline simulator and
 the tuner (`simulate_batch`, a whole swarm in one call), the bridge's plant (`rk4_step`) and the runner
 (`controller_step`). They work on flat float64 arrays and preallocated workspaces so the inner loop allocates
-nothing. `rov_mav.dynamics` and `rov_mav.control` hold the readable matrix forms that the tests hold these to.
+nothing. `rov_mav.dynamics` and `rov_mav.law` hold the readable matrix forms that the tests hold these to.
 
 Conventions: eta = [x, y, z, phi, theta, psi] (NED, ZYX Euler), nu = [u, v, w, p, q, r] (body FRD).
 Packed vehicle vector (see `rov_mav.model.pack_vehicle`): M (36), M^-1 (36), linear damping (6),

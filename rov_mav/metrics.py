@@ -1,0 +1,40 @@
+"""Tracking metrics of a run, from its time series (the same JSON for `simulate` and `run`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position error norm (m) and attitude error norm (rad, angles wrapped) per sample; (N, 6) -> (N,), (N,)."""
+    e = eta - eta_d
+    att = (e[:, 3:] + np.pi) % (2 * np.pi) - np.pi
+    return np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(att, axis=1)
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+
+
+def run_metrics(mission: str, controller: str, t: np.ndarray, eta: np.ndarray, eta_d: np.ndarray,
+                tau: np.ndarray, tau_hat: np.ndarray, true_disturbance: np.ndarray | None,
+                completed: bool) -> dict:
+    """The metrics JSON: RMS and max errors, steady-state errors over the second half, effort, estimates."""
+    pos, att = tracking_errors(eta, eta_d)
+    steady = t >= 0.5 * t[-1] if t.size else np.zeros(0, bool)
+    dt = np.diff(t)
+    effort = float(np.sum(np.sum(tau[:-1] ** 2, axis=1) * dt)) if t.size > 1 else 0.0
+    return {
+        "mission": mission,
+        "controller": controller,
+        "duration_s": float(t[-1] - t[0]) if t.size else 0.0,
+        "rms_position_error_m": _rms(pos),
+        "max_position_error_m": float(pos.max()) if pos.size else float("nan"),
+        "rms_attitude_error_rad": _rms(att),
+        "rms_position_error_steady_m": _rms(pos[steady]),
+        "rms_attitude_error_steady_rad": _rms(att[steady]),
+        "control_effort": effort,
+        "final_disturbance_estimate": [float(v) for v in tau_hat[-1]] if len(tau_hat) else None,
+        "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance],
+        "completed": bool(completed),
+    }

@@ -1,0 +1,94 @@
+"""Figures of a run (PNG): the six DOF against the reference, the 3D path, the estimates, the adaptation rates."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from rov_mav.simulation import Trace  # noqa: E402
+
+DOF_LABELS = ("x (m)", "y (m)", "z (m)", "phi (rad)", "theta (rad)", "psi (rad)")
+BODY_LABELS = ("u: X (N)", "v: Y (N)", "w: Z (N)", "p: K (N m)", "q: M (N m)", "r: N (N m)")
+
+
+def _grid(title: str):
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    fig.suptitle(title)
+    return fig, axes.T.ravel()
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_dofs(trace: Trace, title: str, path: Path) -> Path:
+    """Each DOF against its reference (the counterpart of Figs. IV-2, IV-3)."""
+    fig, axes = _grid(title)
+    for i, ax in enumerate(axes):
+        ax.plot(trace.t, trace.reference[:, i], "k--", lw=1, label="reference")
+        ax.plot(trace.t, trace.eta[:, i], lw=1.2, label="vehicle")
+        ax.set_ylabel(DOF_LABELS[i])
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best")
+    for ax in (axes[2], axes[5]):
+        ax.set_xlabel("t (s)")
+    return _save(fig, path)
+
+
+def plot_path(traces: dict[str, Trace], title: str, path: Path) -> Path:
+    """3D path of one or more runs against the reference (Figs. IV-4, IV-7); NED drawn with depth down."""
+    fig = plt.figure(figsize=(8, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    first = next(iter(traces.values()))
+    ax.plot(first.reference[:, 1], first.reference[:, 0], first.reference[:, 2], "k--", lw=1, label="reference")
+    for name, trace in traces.items():
+        ax.plot(trace.eta[:, 1], trace.eta[:, 0], trace.eta[:, 2], lw=1.3, label=name)
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_zlabel("depth (m)")
+    ax.invert_zaxis()
+    ax.set_title(title)
+    ax.legend(loc="best")
+    return _save(fig, path)
+
+
+def plot_estimates(trace: Trace, title: str, path: Path) -> Path:
+    """Disturbance estimates against the true disturbance (Figs. IV-5, IV-6, IV-8)."""
+    fig, axes = _grid(title)
+    for i, ax in enumerate(axes):
+        ax.plot(trace.t, trace.tau_hat[:, i], lw=1.2, label="estimate")
+        if trace.true_disturbance is not None:
+            ax.axhline(trace.true_disturbance[i], color="k", ls="--", lw=1, label="true")
+        ax.set_ylabel(BODY_LABELS[i])
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best")
+    return _save(fig, path)
+
+
+def plot_rates(trace: Trace, title: str, path: Path) -> Path:
+    """Adaptation rates gamma per body DOF (fuzzy or constant)."""
+    fig, axes = _grid(title)
+    for i, ax in enumerate(axes):
+        ax.plot(trace.t, trace.gamma[:, i], lw=1)
+        ax.set_ylabel(f"gamma {'uvwpqr'[i]}")
+        ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_run(trace: Trace, label: str, out_dir: Path) -> list[Path]:
+    """The four standard figures of one run, written to out_dir; returns their paths."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return [
+        plot_dofs(trace, f"{label}: tracking per DOF", out_dir / "dofs.png"),
+        plot_path({label: trace}, f"{label}: 3D path", out_dir / "path3d.png"),
+        plot_estimates(trace, f"{label}: disturbance estimate", out_dir / "estimates.png"),
+        plot_rates(trace, f"{label}: adaptation rates", out_dir / "rates.png"),
+    ]

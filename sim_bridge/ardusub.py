@@ -1,0 +1,185 @@
+"""The emulated ArduSub vehicle logic: modes, arming, RC input, failsafes and servo output routing.
+
+Pure: no I/O and no wall clock; every method takes the simulated time `t` in seconds. What it has to tell the
+ground station (STATUSTEXT) is queued in `texts` for the caller to send.
+
+Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.md):
+- RC overrides only from the GCS sysid; they count as GCS heartbeats and as pilot input.
+- SERVOn_FUNCTION 51..66 (RCIN1..16) passes RC input n straight to output n, whether armed or not, without motor
+  directions; with no RC receiver the output keeps its last value after the override ends.
+- SERVOn_FUNCTION 33..40 (motors 1..8) come from the vectored_6dof mixer of the pilot channels, only when armed
+  (1500 us when disarmed).
+- Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
+  channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
+- GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
+  from the GCS sysid, while armed: warn (1), disarm (2), hold (3: POSHOLD) or surface (4: SURFACE, refused here, so
+  disarm as ArduSub does when that mode change fails).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim_bridge import mixer
+from sim_bridge.params import Params
+from sim_bridge.rc import RCInput
+
+MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRCLE": 7, "SURFACE": 9,
+         "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
+MODE_NAMES = {v: k for k, v in MODES.items()}
+SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL")})
+GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
+
+MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
+MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 3, 4, 5
+MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING = 2, 4
+FS_GCS_WARN, FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 1, 2, 3, 4
+FS_PILOT_DISARM = 2
+GCS_CHECK_PERIOD = 0.3          # s: ArduSub's 3.3 Hz loop
+GCS_WARN_PERIOD = 30.0          # s between "heartbeat lost" warnings
+RCIN1, RCIN16 = 51, 66
+MOTOR1, MOTOR8 = 33, 40
+SERVOS = 16
+# Pilot axis of each RC channel 1..6 in the mixer's order (roll, pitch, yaw, throttle, forward, lateral).
+PILOT_CHANNEL_OF_AXIS = (1, 0, 3, 2, 4, 5)
+
+
+class ArduSub:
+    """State of one emulated ArduSub vehicle; drive it with the handlers and `update(t)`."""
+
+    def __init__(self, params: Params, t: float = 0.0):
+        self.params = params
+        self.rc = RCInput()
+        self.mode = MODES["MANUAL"]
+        self.armed = False
+        self.failsafe_gcs = False
+        self.failsafe_pilot = False
+        self.texts: list[tuple[int, str]] = []
+        self._gcs_seen: float | None = None
+        self._pilot_seen = t
+        self._next_gcs_check = t
+        self._last_gcs_warn: float | None = None
+
+    # -- inputs ----------------------------------------------------------------------------------------------
+
+    def gcs_heartbeat(self, sysid: int, t: float) -> None:
+        """A HEARTBEAT from `sysid`: refreshes the GCS failsafe if it is the GCS sysid."""
+        if sysid == self.params.gcs_sysid:
+            self._gcs_seen = t
+
+    def rc_override(self, sysid: int, values: list[int], t: float) -> bool:
+        """RC_CHANNELS_OVERRIDE's 18 channel fields from `sysid`; False (ignored) unless it is the GCS sysid."""
+        if sysid != self.params.gcs_sysid:
+            return False
+        self.rc.apply_message(values, t)
+        self._pilot_seen = t
+        self._gcs_seen = t
+        return True
+
+    def arm(self, arm: bool) -> int:
+        """MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT. Arming in MANUAL has no pre-arm failures (as on SITL)."""
+        self.armed = arm
+        return MAV_RESULT_ACCEPTED
+
+    def set_mode(self, custom_mode: int) -> bool:
+        """Change mode; False (and a warning) for a mode this vehicle cannot enter."""
+        if custom_mode not in SUPPORTED_MODES:
+            self.texts.append((MAV_SEVERITY_WARNING, f"Flight mode change failed: {custom_mode}"))
+            return False
+        self.mode = custom_mode
+        return True
+
+    # -- time ------------------------------------------------------------------------------------------------
+
+    def update(self, t: float) -> None:
+        """One main-loop pass at time t: RC input, then the failsafes."""
+        self.rc.update(t, self.params["RC_OVERRIDE_TIME"])
+        self._pilot_input_check(t)
+        if t >= self._next_gcs_check:
+            self._next_gcs_check = t + GCS_CHECK_PERIOD
+            self._gcs_check(t)
+
+    def _pilot_input_check(self, t: float) -> None:
+        if self.params["FS_PILOT_INPUT"] == 0:
+            self.failsafe_pilot = False
+            return
+        if t < self._pilot_seen + self.params["FS_PILOT_TIMEOUT"]:
+            self.failsafe_pilot = False
+            return
+        if self.failsafe_pilot:
+            return
+        self.failsafe_pilot = True
+        self.texts.append((MAV_SEVERITY_CRITICAL, "Lost manual control"))
+        for ch in range(6):
+            self.rc.set_override(ch, 1500, t)
+        self.rc.update(t, self.params["RC_OVERRIDE_TIME"])
+        if self.params["FS_PILOT_INPUT"] == FS_PILOT_DISARM:
+            self.arm(False)
+
+    def _gcs_check(self, t: float) -> None:
+        action = int(self.params["FS_GCS_ENABLE"])
+        if action == 0 or self._gcs_seen is None:
+            return
+        if t - self._gcs_seen < self.params["FS_GCS_TIMEOUT"]:
+            self.failsafe_gcs = False
+            return
+        if self._last_gcs_warn is None or t - self._last_gcs_warn > GCS_WARN_PERIOD:
+            self._last_gcs_warn = t
+            self.texts.append((MAV_SEVERITY_WARNING, f"MYGCS: {self.params.gcs_sysid}, heartbeat lost"))
+        if self.failsafe_gcs or not self.armed:
+            return
+        self.failsafe_gcs = True
+        if action == FS_GCS_DISARM:
+            self.arm(False)
+        elif action == FS_GCS_HOLD:
+            self.set_mode(MODES["POSHOLD"])
+        elif action == FS_GCS_SURFACE and not self.set_mode(MODES["SURFACE"]):
+            self.arm(False)
+
+    # -- outputs ---------------------------------------------------------------------------------------------
+
+    def pilot_axes(self) -> np.ndarray:
+        """The pilot's (roll, pitch, yaw, throttle, forward, lateral) in [-1, 1] from RC channels 1-6."""
+        p = self.params
+        return np.array([
+            self.rc.norm_input(ch, p[f"RC{ch + 1}_MIN"], p[f"RC{ch + 1}_TRIM"], p[f"RC{ch + 1}_MAX"])
+            for ch in PILOT_CHANNEL_OF_AXIS
+        ])
+
+    def motor_pwm(self) -> np.ndarray:
+        """PWM (8,) of motors 1..8: the mixer when armed, neutral when disarmed."""
+        if not self.armed:
+            return np.full(8, 1500, dtype=np.int32)
+        p = self.params
+        directions = np.array([p[f"MOT_{i}_DIRECTION"] for i in range(1, 9)])
+        outputs = mixer.mix(self.pilot_axes(), np.where(directions < 0, -1.0, 1.0))
+        return mixer.to_pwm(outputs, p["MOT_PWM_MIN"], p["MOT_PWM_MAX"])
+
+    def servo_outputs(self) -> np.ndarray:
+        """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs)."""
+        motors = self.motor_pwm()
+        out = np.zeros(SERVOS, dtype=np.int32)
+        for n in range(SERVOS):
+            function = int(self.params[f"SERVO{n + 1}_FUNCTION"])
+            if MOTOR1 <= function <= MOTOR8:
+                out[n] = motors[function - MOTOR1]
+            elif RCIN1 <= function <= RCIN16:
+                out[n] = self.rc.radio_in[function - RCIN1]
+        return out
+
+    # -- status ----------------------------------------------------------------------------------------------
+
+    def base_mode(self) -> int:
+        """HEARTBEAT base_mode: custom|stabilize|manual-input (81), +8 guided-type modes, +128 armed."""
+        mode = 1 | 16 | 64
+        if self.mode in GUIDED_FLAG_MODES:
+            mode |= 8
+        if self.armed:
+            mode |= 128
+        return mode
+
+    def system_status(self) -> int:
+        """HEARTBEAT system_status: CRITICAL in any failsafe, else ACTIVE armed, STANDBY disarmed."""
+        if self.failsafe_gcs or self.failsafe_pilot:
+            return MAV_STATE_CRITICAL
+        return MAV_STATE_ACTIVE if self.armed else MAV_STATE_STANDBY

@@ -1,0 +1,40 @@
+"""A simple battery: open-circuit voltage from the state of charge, minus an internal-resistance drop.
+
+Shape of a 4S Li-ion pack (Blue Robotics 14.8 V, 18 Ah), scaled so that a full pack reads `full_voltage`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Open-circuit voltage of a 4S Li-ion pack (V) against state of charge (0..1).
+_SOC = np.array([0.0, 0.05, 0.1, 0.2, 0.5, 0.8, 0.9, 1.0])
+_OCV = np.array([12.0, 13.2, 13.8, 14.4, 15.0, 15.8, 16.2, 16.8])
+INTERNAL_RESISTANCE = 0.03      # ohm, whole pack
+HOTEL_CURRENT = 0.5             # A drawn by the electronics (flight controller, companion, camera)
+
+
+class Battery:
+    """State of charge and terminal voltage; `step(thruster_current, dt)` drains it."""
+
+    def __init__(self, full_voltage: float = 16.8, capacity_ah: float = 18.0):
+        self.full_voltage = full_voltage
+        self.capacity_ah = capacity_ah
+        self.consumed_ah = 0.0
+        self.current = HOTEL_CURRENT
+        self.voltage = self._terminal()
+
+    @property
+    def remaining(self) -> float:
+        """State of charge, 0..1."""
+        return float(np.clip(1.0 - self.consumed_ah / self.capacity_ah, 0.0, 1.0))
+
+    def step(self, thruster_current: float, dt: float) -> None:
+        """Draw `thruster_current` A (plus the electronics) for `dt` s."""
+        self.current = HOTEL_CURRENT + thruster_current
+        self.consumed_ah += self.current * dt / 3600.0
+        self.voltage = self._terminal()
+
+    def _terminal(self) -> float:
+        ocv = float(np.interp(self.remaining, _SOC, _OCV)) * self.full_voltage / _OCV[-1]
+        return ocv - INTERNAL_RESISTANCE * self.current

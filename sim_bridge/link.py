@@ -1,0 +1,191 @@
+"""MAVLink 2 transports of the emulated vehicle: udpout (send to a ground station), udpin and tcpin (answer whoever
+writes). Non-blocking sockets, polled by the bridge's loop; one MAVLink encoder (sequence numbers) per link.
+"""
+
+from __future__ import annotations
+
+import errno
+import socket
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+KINDS = ("udpout", "udpin", "tcpin")
+MAX_DATAGRAM = 65535
+MAX_TCP_BACKLOG = 1 << 20        # bytes queued for a slow TCP client before it is dropped
+
+
+class LinkError(Exception):
+    """A link could not be opened; the message is one line naming the endpoint and the reason."""
+
+
+def parse_endpoint(spec: str, kinds: tuple[str, ...] = KINDS) -> tuple[str, str, int]:
+    """'KIND:HOST:PORT' -> (kind, host, port); LinkError if malformed."""
+    parts = spec.rsplit(":", 2)
+    if len(parts) != 3 or parts[0] not in kinds or not parts[1]:
+        raise LinkError(f"{spec}: expected {' or '.join(k + ':HOST:PORT' for k in kinds)}")
+    try:
+        port = int(parts[2])
+    except ValueError:
+        port = -1
+    if not 0 < port < 65536:
+        raise LinkError(f"{spec}: port must be a number from 1 to 65535")
+    return parts[0], parts[1], port
+
+
+def _resolve(spec: str, host: str, port: int) -> tuple[str, int]:
+    try:
+        info = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
+    except socket.gaierror as exc:
+        raise LinkError(f"{spec}: bad address: {exc.strerror}") from None
+    return info[0][4]
+
+
+def _os_error(spec: str, exc: OSError) -> LinkError:
+    reason = "address already in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc)).lower()
+    return LinkError(f"{spec}: {reason}")
+
+
+class _Peer:
+    """A byte stream's parser (and, for TCP, its socket and unsent bytes)."""
+
+    def __init__(self, sock: socket.socket | None = None):
+        self.sock = sock
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.backlog = b""
+
+
+class Link:
+    """One MAVLink link. `sockets()` for select, `receive()` drains it, `send(msg)` encodes and writes."""
+
+    def __init__(self, spec: str, channel: int, sysid: int, compid: int = 1):
+        self.spec = spec
+        self.channel = channel
+        self.kind, host, port = parse_endpoint(spec)
+        self.address = _resolve(spec, host, port)
+        self.encoder = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
+        self.peers: list[_Peer] = []
+        self.udp_peer: tuple[str, int] | None = self.address if self.kind == "udpout" else None
+        self.sent = self.dropped = 0
+        try:
+            if self.kind == "tcpin":
+                self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                self.sock.bind(self.address)
+                self.sock.listen(4)
+            else:
+                self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                self.sock.bind(self.address if self.kind == "udpin" else ("0.0.0.0", 0))
+                self.peers.append(_Peer())
+        except OSError as exc:
+            self.sock.close()
+            raise _os_error(spec, exc) from None
+        self.sock.setblocking(False)
+
+    def sockets(self) -> list[socket.socket]:
+        return [self.sock] + [p.sock for p in self.peers if p.sock is not None]
+
+    def receive(self) -> list:
+        """Every complete MAVLink message waiting on this link (non-blocking)."""
+        if self.kind == "tcpin":
+            return self._receive_tcp()
+        out = []
+        while True:
+            try:
+                data, sender = self.sock.recvfrom(MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                return out
+            except OSError:          # e.g. ICMP port unreachable reported on a later call
+                continue
+            if self.kind == "udpin":
+                self.udp_peer = sender
+            out += _parse(self.peers[0], data)
+
+    def _receive_tcp(self) -> list:
+        while True:
+            try:
+                client, _ = self.sock.accept()
+            except (BlockingIOError, InterruptedError):
+                break
+            client.setblocking(False)
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self.peers.append(_Peer(client))
+        out = []
+        for peer in list(self.peers):
+            while True:
+                try:
+                    data = peer.sock.recv(MAX_DATAGRAM)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:
+                    data = b""
+                if not data:
+                    self._drop(peer)
+                    break
+                out += _parse(peer, data)
+        return out
+
+    def send(self, msg) -> None:
+        """Encode `msg` with this link's sequence numbers and write it to every peer."""
+        self.encoder.send(msg)
+
+    def write(self, buf: bytes) -> None:
+        """File interface used by the pymavlink encoder."""
+        if self.kind == "tcpin":
+            for peer in list(self.peers):
+                peer.backlog += buf
+                self._flush(peer)
+            return
+        if self.udp_peer is None:
+            self.dropped += 1
+            return
+        try:
+            self.sock.sendto(buf, self.udp_peer)
+            self.sent += 1
+        except OSError:
+            self.dropped += 1
+
+    def _flush(self, peer: _Peer) -> None:
+        try:
+            n = peer.sock.send(peer.backlog)
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
+            self._drop(peer)
+            return
+        peer.backlog = peer.backlog[n:]
+        self.sent += 1
+        if len(peer.backlog) > MAX_TCP_BACKLOG:
+            self._drop(peer)
+
+    def _drop(self, peer: _Peer) -> None:
+        peer.sock.close()
+        self.peers.remove(peer)
+
+    def close(self) -> None:
+        for peer in self.peers:
+            if peer.sock is not None:
+                peer.sock.close()
+        self.peers.clear()
+        self.sock.close()
+
+
+def _parse(peer: _Peer, data: bytes) -> list:
+    try:
+        msgs = peer.parser.parse_buffer(data) or []
+    except mavlink.MAVError:
+        return []
+    return [m for m in msgs if m.get_type() != "BAD_DATA"]
+
+
+def open_links(specs: list[str], sysid: int) -> list[Link]:
+    """Open every endpoint in order (channel = position); on any failure close those opened and raise LinkError."""
+    links: list[Link] = []
+    try:
+        for channel, spec in enumerate(specs):
+            links.append(Link(spec, channel, sysid))
+    except LinkError:
+        for link in links:
+            link.close()
+        raise
+    return links

@@ -1,0 +1,136 @@
+"""ArduSub's parameters that the bridge uses: names, defaults and MAVLink types, for firmware 4.5 or 4.7 naming.
+
+ArduSub 4.7 renamed SYSID_MYGCS -> MAV_GCS_SYSID, SYSID_THISMAV -> MAV_SYSID and the stream rates SRn_* (n from 0)
+-> MAV{n+1}_*. `Params(firmware)` holds one of the two name sets; `Params.names` maps the roles the bridge reads
+to the names that firmware uses. SIM_* are the simulation's own settings (as in ArduPilot's SITL).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+INT8, INT16, INT32, REAL32 = 2, 4, 6, 9          # MAV_PARAM_TYPE
+_LIMITS = {INT8: (-128, 127), INT16: (-32768, 32767), INT32: (-2**31, 2**31 - 1)}
+
+FIRMWARES = ("4.5", "4.7")
+DEFAULT_FIRMWARE = "4.7"
+CHANNELS = 4                                     # MAVLink channels (links) that have stream-rate parameters
+STREAM_GROUPS = ("RAW_SENS", "EXT_STAT", "RC_CHAN", "RAW_CTRL", "POSITION",
+                 "EXTRA1", "EXTRA2", "EXTRA3", "PARAMS", "ADSB")
+# Stream rates in Hz: ATTITUDE 10, position 3, servo/status 2 as measured on ArduSub SITL; the rest chosen.
+STREAM_DEFAULTS = {"RAW_SENS": 2, "EXT_STAT": 2, "RC_CHAN": 2, "RAW_CTRL": 0, "POSITION": 3,
+                   "EXTRA1": 10, "EXTRA2": 10, "EXTRA3": 3, "PARAMS": 0, "ADSB": 0}
+
+
+@dataclass(frozen=True)
+class Spec:
+    name: str
+    default: float
+    ptype: int
+
+
+@dataclass(frozen=True)
+class Names:
+    """The parameter names of one firmware version for the roles the bridge reads."""
+
+    gcs_sysid: str
+    sysid: str
+    stream_prefix: tuple[str, ...]   # per channel, e.g. ("SR0_", ...) or ("MAV1_", ...)
+
+    def stream(self, channel: int, group: str) -> str:
+        return f"{self.stream_prefix[channel]}{group}"
+
+
+def names_for(firmware: str) -> Names:
+    """Parameter names used by ArduSub `firmware` ("4.5" or "4.7")."""
+    if firmware == "4.5":
+        return Names("SYSID_MYGCS", "SYSID_THISMAV", tuple(f"SR{n}_" for n in range(CHANNELS)))
+    if firmware == "4.7":
+        return Names("MAV_GCS_SYSID", "MAV_SYSID", tuple(f"MAV{n + 1}_" for n in range(CHANNELS)))
+    raise ValueError(f"unknown firmware {firmware!r}: choose one of {', '.join(FIRMWARES)}")
+
+
+def _table(names: Names) -> list[Spec]:
+    specs = [
+        Spec(names.sysid, 1, INT16),
+        Spec(names.gcs_sysid, 255, INT16),
+        Spec("FRAME_CONFIG", 2, INT8),                 # vectored_6dof (BlueROV2 Heavy)
+        Spec("MOT_PWM_MIN", 1100, INT16),
+        Spec("MOT_PWM_MAX", 1900, INT16),
+        *(Spec(f"MOT_{i}_DIRECTION", 1, INT8) for i in range(1, 9)),
+        Spec("RC_OVERRIDE_TIME", 3.0, REAL32),
+    ]
+    for ch in range(1, 17):
+        specs += [Spec(f"RC{ch}_MIN", 1100, INT16), Spec(f"RC{ch}_MAX", 1900, INT16),
+                  Spec(f"RC{ch}_TRIM", 1500, INT16)]
+    specs += [Spec(f"SERVO{n}_FUNCTION", 32 + n if n <= 8 else 0, INT16) for n in range(1, 17)]
+    specs += [
+        Spec("FS_GCS_ENABLE", 2, INT8),
+        Spec("FS_GCS_TIMEOUT", 5.0, REAL32),
+        Spec("FS_PILOT_INPUT", 2, INT8),
+        Spec("FS_PILOT_TIMEOUT", 3.0, REAL32),
+        Spec("BATT_CAPACITY", 18000, INT32),
+    ]
+    for channel in range(CHANNELS):
+        specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]
+    specs += [
+        Spec("SIM_SPEEDUP", 1.0, REAL32),
+        Spec("SIM_BATT_VOLTAGE", 16.8, REAL32),
+        Spec("SIM_BATT_CAP_AH", 18.0, REAL32),
+    ]
+    return specs
+
+
+def stored_value(value: float, ptype: int) -> float:
+    """The value ArduPilot stores for a PARAM_SET of `value`: integers rounded half-away-ish and saturated.
+
+    ArduPilot adds 0.01 (away from zero) and truncates, then clamps to the storage type; documented ranges are not
+    enforced."""
+    if ptype == REAL32:
+        return float(value)
+    low, high = _LIMITS[ptype]
+    nudged = value + (0.01 if value >= 0 else -0.01)
+    return float(int(min(max(nudged, low), high)))
+
+
+class Params:
+    """The parameter table of one emulated vehicle, in ArduSub's send order (index = position)."""
+
+    def __init__(self, firmware: str = DEFAULT_FIRMWARE):
+        self.firmware = firmware
+        self.names = names_for(firmware)
+        self.specs = _table(self.names)
+        self._index = {s.name: i for i, s in enumerate(self.specs)}
+        self._values = {s.name: float(s.default) for s in self.specs}
+
+    def __len__(self) -> int:
+        return len(self.specs)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._index
+
+    def __getitem__(self, name: str) -> float:
+        return self._values[name]
+
+    def index(self, name: str) -> int:
+        return self._index[name]
+
+    def set(self, name: str, value: float) -> float | None:
+        """Apply a PARAM_SET as ArduSub does: the stored value, or None (no reply) for unknown names or NaN/inf."""
+        if name not in self._index or not math.isfinite(value):
+            return None
+        stored = stored_value(value, self.specs[self._index[name]].ptype)
+        self._values[name] = stored
+        return stored
+
+    @property
+    def gcs_sysid(self) -> int:
+        return int(self._values[self.names.gcs_sysid])
+
+    @property
+    def sysid(self) -> int:
+        return int(self._values[self.names.sysid])
+
+    def stream_rate(self, channel: int, group: str) -> float:
+        return self._values[self.names.stream(min(channel, CHANNELS - 1), group)]

@@ -1,0 +1,39 @@
+"""The simulated vehicle's hardware: 8 PWM -> T200 thrust at the battery voltage -> first-order lag -> body wrench
+tau = B f -> the shared 6-DOF plant; the battery is drained by the thrusters' current.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rov_mav.thrusters import T200, allocation_matrix
+from rov_mav.vehicle import Vehicle
+from sim_bridge.battery import Battery
+
+VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery voltage rounded to this
+
+
+class Physics:
+    """Advances `plant` (the shared rov_mav Plant) by fixed steps of `h` s under 8 thruster PWMs."""
+
+    def __init__(self, vehicle: Vehicle, plant, battery: Battery, t200: T200, h: float):
+        self.plant = plant
+        self.battery = battery
+        self.t200 = t200
+        self.h = h
+        self.matrix = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions)
+        tc = vehicle.thruster_time_constant
+        self._lag = 1.0 if tc <= 0 else 1.0 - math.exp(-h / tc)
+        self.thrusts = np.zeros(8)
+        self.tau = np.zeros(6)
+
+    def step(self, pwm: np.ndarray) -> None:
+        """One step of h seconds with thruster PWMs (8,) in us held."""
+        voltage = round(self.battery.voltage / VOLTAGE_RESOLUTION) * VOLTAGE_RESOLUTION
+        commanded = self.t200.thrust(pwm, voltage)
+        self.thrusts += (commanded - self.thrusts) * self._lag
+        self.tau = self.matrix @ self.thrusts
+        self.plant.step(self.tau, self.h)
+        self.battery.step(float(np.sum(self.t200.current(pwm, voltage))), self.h)

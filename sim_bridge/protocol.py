@@ -1,0 +1,160 @@
+"""What the emulated ArduSub answers to each MAVLink message a ground station sends (its GCS_MAVLINK layer).
+
+`Protocol.handle(msg, channel, scheduler, t)` returns the replies as (message, to_all) pairs: to_all=True goes out on
+every link (PARAM_VALUE after a PARAM_SET), False only back on the link the request came in on.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sim_bridge import schedule, telemetry
+from sim_bridge.ardusub import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_FAILED, MAV_RESULT_UNSUPPORTED,
+                                ArduSub)
+from sim_bridge.params import STREAM_GROUPS, Params
+from sim_bridge.schedule import Scheduler
+from sim_bridge.telemetry import ENCODER, Snapshot
+
+Reply = tuple[object, bool]
+FORCE_ARM = 21196
+FTP_ACK, FTP_NAK = 128, 129
+FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
+FTP_ERR_UNKNOWN_COMMAND, FTP_ERR_FILE_NOT_FOUND = 7, 10
+
+
+class Protocol:
+    """Dispatches incoming messages to the vehicle, the parameters and the link's scheduler."""
+
+    def __init__(self, vehicle: ArduSub, params: Params, snapshot: Callable[[], Snapshot],
+                 on_params_changed: Callable[[float], None]):
+        self.vehicle = vehicle
+        self.params = params
+        self.snapshot = snapshot
+        self.on_params_changed = on_params_changed
+
+    def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
+        """Replies to one message received on link `channel` at sim time t."""
+        target = getattr(msg, "target_system", 0)
+        if target not in (0, self.params.sysid):
+            return []
+        kind = msg.get_type()
+        sysid = msg.get_srcSystem()
+        if kind == "HEARTBEAT":
+            self.vehicle.gcs_heartbeat(sysid, t)
+        elif kind == "RC_CHANNELS_OVERRIDE":
+            self.vehicle.rc_override(sysid, [getattr(msg, f"chan{i}_raw") for i in range(1, 19)], t)
+        elif kind in ("COMMAND_LONG", "COMMAND_INT"):
+            return self._command(msg, scheduler, t)
+        elif kind == "SET_MODE":
+            result = self._set_mode(msg.base_mode, msg.custom_mode)
+            return [(ENCODER.command_ack_encode(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0, sysid,
+                                                msg.get_srcComponent()), False)]
+        elif kind == "PARAM_REQUEST_LIST":
+            return [(self._param_value(i), False) for i in range(len(self.params))]
+        elif kind == "PARAM_REQUEST_READ":
+            return self._param_read(msg)
+        elif kind == "PARAM_SET":
+            return self._param_set(msg, t)
+        elif kind == "REQUEST_DATA_STREAM":
+            self._request_data_stream(msg, channel, t)
+        elif kind == "TIMESYNC" and msg.tc1 == 0:
+            return [(ENCODER.timesync_encode(int(t * 1e9), msg.ts1), False)]
+        elif kind == "FILE_TRANSFER_PROTOCOL":
+            return [(self._ftp_refusal(msg), False)]
+        return []
+
+    # -- commands --------------------------------------------------------------------------------------------
+
+    def _command(self, msg, scheduler: Scheduler, t: float) -> list[Reply]:
+        replies: list[Reply] = []
+        cmd = msg.command
+        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            if msg.param1 in (0.0, 1.0):
+                result = self.vehicle.arm(msg.param1 == 1.0)
+            else:
+                result = MAV_RESULT_UNSUPPORTED
+        elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
+            result = self._set_mode(int(msg.param1), int(msg.param2))
+        elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
+            name = telemetry.NAME_OF_ID.get(int(msg.param1))
+            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
+            if name is not None:
+                scheduler.set_interval(name, msg.param2, t)
+        elif cmd == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
+            name = telemetry.NAME_OF_ID.get(int(msg.param1))
+            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
+            if name is not None:
+                interval = scheduler.intervals[name]
+                replies.append((ENCODER.message_interval_encode(int(msg.param1),
+                                                                int(interval * 1e6) if interval else -1), False))
+        elif cmd in (mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
+            msg_id = int(msg.param1) if cmd == mavlink.MAV_CMD_REQUEST_MESSAGE else \
+                mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+            name = telemetry.NAME_OF_ID.get(msg_id)
+            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
+            if name is not None:
+                replies.append((telemetry.BUILDERS[name](self.snapshot()), False))
+        else:
+            result = MAV_RESULT_UNSUPPORTED
+        ack = ENCODER.command_ack_encode(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
+        return [(ack, False)] + replies
+
+    def _set_mode(self, base_mode: int, custom_mode: int) -> int:
+        """ArduPilot's answer to a mode change: custom modes only; FAILED for a mode it cannot enter."""
+        if not base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return MAV_RESULT_DENIED
+        return MAV_RESULT_ACCEPTED if self.vehicle.set_mode(custom_mode) else MAV_RESULT_FAILED
+
+    # -- parameters ------------------------------------------------------------------------------------------
+
+    def _param_value(self, index: int, reported_index: int | None = None):
+        spec = self.params.specs[index]
+        return ENCODER.param_value_encode(spec.name.encode(), self.params[spec.name], spec.ptype, len(self.params),
+                                          index if reported_index is None else reported_index)
+
+    def _param_read(self, msg) -> list[Reply]:
+        if msg.param_index >= 0:
+            index = msg.param_index if msg.param_index < len(self.params) else None
+        else:
+            name = _param_name(msg.param_id)
+            index = self.params.index(name) if name in self.params else None
+        return [] if index is None else [(self._param_value(index), False)]
+
+    def _param_set(self, msg, t: float) -> list[Reply]:
+        name = _param_name(msg.param_id)
+        if self.params.set(name, msg.param_value) is None:
+            return []
+        self.on_params_changed(t)
+        return [(self._param_value(self.params.index(name), reported_index=65535), True)]
+
+    def _request_data_stream(self, msg, channel: int, t: float) -> None:
+        groups = STREAM_GROUPS[:8] if msg.req_stream_id == 0 else \
+            schedule.DATA_STREAM_GROUPS.get(msg.req_stream_id, ())
+        rate = msg.req_message_rate if msg.start_stop else 0
+        for group in groups:
+            self.params.set(self.params.names.stream(channel, group), rate)
+        self.on_params_changed(t)
+
+    # -- MAVLink FTP -----------------------------------------------------------------------------------------
+
+    def _ftp_refusal(self, msg):
+        """ACK to session resets, NAK to everything else: no files here, so clients fall back to PARAM_*."""
+        payload = bytes(msg.payload)
+        seq, session, opcode = struct.unpack_from("<HBB", payload)
+        if opcode in (FTP_TERMINATE, FTP_RESET):
+            reply, size, data = FTP_ACK, 0, b""
+        else:
+            error = FTP_ERR_FILE_NOT_FOUND if opcode in (FTP_LIST, FTP_OPEN_RO) else FTP_ERR_UNKNOWN_COMMAND
+            reply, size, data = FTP_NAK, 1, bytes([error])
+        body = struct.pack("<HBBBBBBI", (seq + 1) & 0xFFFF, session, reply, size, opcode, 0, 0, 0) + data
+        return ENCODER.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
+                                                     list(body.ljust(251, b"\0")))
+
+
+def _param_name(raw) -> str:
+    if isinstance(raw, bytes):
+        raw = raw.decode(errors="replace")
+    return raw.split("\0", 1)[0]

@@ -1,0 +1,174 @@
+"""Telemetry messages as ArduSub fills them, built from a snapshot of the simulated vehicle.
+
+Every time field is simulated time since boot. Position, velocity and attitude are the plant's measured (noisy)
+state; depth comes from the Bar30 (SCALED_PRESSURE2), LOCAL/GLOBAL position from an ideal navigation solution
+(a DVL-aided EKF that is valid from boot).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+ENCODER = mavlink.MAVLink(None)
+EARTH_RADIUS = 6378137.0                 # m
+SURFACE_PRESSURE = 101325.0              # Pa
+WATER_TEMPERATURE = 15.0                 # deg C
+FIRMWARE_VERSION = {"4.5": (4, 5, 7), "4.7": (4, 7, 0)}
+SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+           | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+           | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
+           | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY)
+CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+
+
+@dataclass
+class Snapshot:
+    """What the telemetry reports at one instant. Arrays: eta, nu (6,), servo (16,), rc_in (18,)."""
+
+    t: float
+    eta: np.ndarray
+    nu: np.ndarray
+    servo: np.ndarray
+    rc_in: np.ndarray
+    base_mode: int
+    custom_mode: int
+    system_status: int
+    throttle: float                      # pilot throttle axis, -1..1
+    voltage: float                       # V
+    current: float                       # A
+    consumed_ah: float
+    remaining: float                     # 0..1
+    origin: tuple[float, float, float]   # lat deg, lon deg, alt m (surface)
+    water_density: float
+    gravity: float
+    unix_start: float                    # wall-clock epoch (s) of simulated time 0
+    firmware: str
+
+    @property
+    def ms(self) -> int:
+        return int(self.t * 1000.0) & 0xFFFFFFFF
+
+    def ned_velocity(self) -> np.ndarray:
+        phi, theta, psi = self.eta[3:6]
+        cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
+                                  math.cos(psi), math.sin(psi))
+        R = np.array([[cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
+                      [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
+                      [-st, ct * sf, ct * cf]])
+        return R @ self.nu[:3]
+
+
+def quaternion(phi: float, theta: float, psi: float) -> tuple[float, float, float, float]:
+    """(w, x, y, z) of the ZYX Euler angles."""
+    cr, sr = math.cos(phi / 2), math.sin(phi / 2)
+    cp, sp = math.cos(theta / 2), math.sin(theta / 2)
+    cy, sy = math.cos(psi / 2), math.sin(psi / 2)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+
+
+def heartbeat(s: Snapshot):
+    return ENCODER.heartbeat_encode(mavlink.MAV_TYPE_SUBMARINE, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                    s.base_mode, s.custom_mode, s.system_status, 3)
+
+
+def attitude(s: Snapshot):
+    return ENCODER.attitude_encode(s.ms, *map(float, s.eta[3:6]), *map(float, s.nu[3:6]))
+
+
+def attitude_quaternion(s: Snapshot):
+    return ENCODER.attitude_quaternion_encode(s.ms, *quaternion(*s.eta[3:6]), *map(float, s.nu[3:6]))
+
+
+def local_position_ned(s: Snapshot):
+    return ENCODER.local_position_ned_encode(s.ms, *map(float, s.eta[:3]), *map(float, s.ned_velocity()))
+
+
+def global_position_int(s: Snapshot):
+    lat0, lon0, alt0 = s.origin
+    x, y, z = s.eta[:3]
+    lat = lat0 + math.degrees(x / EARTH_RADIUS)
+    lon = lon0 + math.degrees(y / (EARTH_RADIUS * math.cos(math.radians(lat0))))
+    v = s.ned_velocity() * 100.0
+    return ENCODER.global_position_int_encode(
+        s.ms, round(lat * 1e7), round(lon * 1e7), round((alt0 - z) * 1000), round(-z * 1000),
+        round(v[0]), round(v[1]), round(v[2]), round(math.degrees(s.eta[5]) % 360.0 * 100) % 36000)
+
+
+def gauge_pressure(s: Snapshot) -> float:
+    """Water pressure above the surface's at the Bar30, Pa."""
+    return s.water_density * s.gravity * float(s.eta[2])
+
+
+def scaled_pressure2(s: Snapshot):
+    diff = gauge_pressure(s)
+    return ENCODER.scaled_pressure2_encode(s.ms, (SURFACE_PRESSURE + diff) / 100.0, diff / 100.0,
+                                           round(WATER_TEMPERATURE * 100))
+
+
+def vfr_hud(s: Snapshot):
+    v = s.ned_velocity()
+    speed = float(math.hypot(v[0], v[1]))
+    heading = round(math.degrees(s.eta[5])) % 360
+    return ENCODER.vfr_hud_encode(speed, speed, heading, round(abs(s.throttle) * 100), -float(s.eta[2]),
+                                  -float(v[2]))
+
+
+def servo_output_raw(s: Snapshot):
+    return ENCODER.servo_output_raw_encode(int(s.t * 1e6) & 0xFFFFFFFF, 0, *map(int, s.servo))
+
+
+def rc_channels(s: Snapshot):
+    return ENCODER.rc_channels_encode(s.ms, len(s.rc_in), *map(int, s.rc_in), 255)
+
+
+def sys_status(s: Snapshot):
+    return ENCODER.sys_status_encode(SENSORS, SENSORS, SENSORS, 0, round(s.voltage * 1000), round(s.current * 100),
+                                     round(s.remaining * 100), 0, 0, 0, 0, 0, 0)
+
+
+def battery_status(s: Snapshot):
+    cells = [round(s.voltage * 1000)] + [65535] * 9
+    return ENCODER.battery_status_encode(0, mavlink.MAV_BATTERY_FUNCTION_UNKNOWN, mavlink.MAV_BATTERY_TYPE_LION,
+                                         32767, cells, round(s.current * 100), round(s.consumed_ah * 1000), -1,
+                                         round(s.remaining * 100), 0, mavlink.MAV_BATTERY_CHARGE_STATE_OK)
+
+
+def system_time(s: Snapshot):
+    return ENCODER.system_time_encode(int((s.unix_start + s.t) * 1e6), s.ms)
+
+
+def autopilot_version(s: Snapshot):
+    major, minor, patch = FIRMWARE_VERSION[s.firmware]
+    version = (major << 24) | (minor << 16) | (patch << 8) | mavlink.FIRMWARE_VERSION_TYPE_OFFICIAL
+    return ENCODER.autopilot_version_encode(CAPABILITIES, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0)
+
+
+def home_position(s: Snapshot):
+    lat0, lon0, alt0 = s.origin
+    return ENCODER.home_position_encode(round(lat0 * 1e7), round(lon0 * 1e7), round(alt0 * 1000), 0.0, 0.0, 0.0,
+                                        [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(s.t * 1e6))
+
+
+BUILDERS = {
+    "HEARTBEAT": heartbeat,
+    "ATTITUDE": attitude,
+    "ATTITUDE_QUATERNION": attitude_quaternion,
+    "LOCAL_POSITION_NED": local_position_ned,
+    "GLOBAL_POSITION_INT": global_position_int,
+    "SCALED_PRESSURE2": scaled_pressure2,
+    "VFR_HUD": vfr_hud,
+    "SERVO_OUTPUT_RAW": servo_output_raw,
+    "RC_CHANNELS": rc_channels,
+    "SYS_STATUS": sys_status,
+    "BATTERY_STATUS": battery_status,
+    "SYSTEM_TIME": system_time,
+    "AUTOPILOT_VERSION": autopilot_version,
+    "HOME_POSITION": home_position,
+}
+NAME_OF_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in BUILDERS}

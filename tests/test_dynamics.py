@@ -1,0 +1,161 @@
+"""The 6-DOF model: Property 1, power balance, kinematics, restoring forces, and kernel == matrix form."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from rov_mav import dynamics, kernel
+
+
+from conftest import random_states
+
+
+def test_rotation_matches_scipy_zyx(rng):
+    eta, _ = random_states(rng, 50)
+    expected = Rotation.from_euler("ZYX", eta[:, [5, 4, 3]]).as_matrix()
+    np.testing.assert_allclose(dynamics.rotation(eta), expected, atol=1e-12)
+
+
+def test_printed_eq_2_3_is_not_a_rotation():
+    """ERRATA 1: the printed J_t (rows 2 and 3 misprinted) is not orthonormal; R is."""
+    phi, th, psi = 0.3, -0.4, 1.1
+    s, c = np.sin, np.cos
+    printed = np.array([
+        [c(psi) * c(th), -s(psi) * c(phi) + c(psi) * s(th) * s(phi), s(psi) * s(th) + c(psi) * c(phi) * s(th)],
+        [s(psi) * c(th), c(psi) * s(th) + s(phi) * s(th) * s(psi), -c(psi) * s(th) + s(th) * s(psi) * c(phi)],
+        [-s(th), c(th) * s(phi), c(th) * s(phi)]])
+    R = dynamics.rotation(np.array([0, 0, 0, phi, th, psi]))
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.abs(printed @ printed.T - np.eye(3)).max() > 0.1
+
+
+def test_kernel_rotation_matches_matrix_form(rng):
+    eta, _ = random_states(rng, 20)
+    R = np.zeros((3, 3))
+    for e in eta:
+        kernel.rotation(e[3], e[4], e[5], R)
+        np.testing.assert_allclose(R, dynamics.rotation(e), atol=1e-14)
+
+
+def test_mass_matrix_symmetric_positive_definite(vehicle):
+    M = vehicle.mass_matrix
+    np.testing.assert_allclose(M, M.T)
+    assert np.linalg.eigvalsh(M).min() > 0
+
+
+def test_coriolis_skew_symmetric_and_power_free(vehicle, rng):
+    _, nu = random_states(rng, 100)
+    C = dynamics.coriolis(vehicle.mass_matrix, nu)
+    np.testing.assert_allclose(C, -np.swapaxes(C, -1, -2), atol=1e-12)
+    np.testing.assert_allclose(np.einsum("ni,nij,nj->n", nu, C, nu), 0.0, atol=1e-12)
+
+
+def test_coriolis_skew_with_offset_cg_and_products(vehicle, rng):
+    """m2c keeps C = -C^T for a full mass matrix too (off-centre CG, inertia products)."""
+    A = rng.normal(size=(6, 6))
+    M = A @ A.T + 6 * np.eye(6)
+    _, nu = random_states(rng, 10)
+    C = dynamics.coriolis(M, nu)
+    np.testing.assert_allclose(C, -np.swapaxes(C, -1, -2), atol=1e-12)
+
+
+def test_damping_positive_definite(vehicle, rng):
+    _, nu = random_states(rng, 50)
+    D = dynamics.damping(vehicle, nu)
+    np.testing.assert_allclose(D, np.swapaxes(D, -1, -2))
+    # Y_v, K_p, N_r linear terms are 0: D is positive definite for nu with no zero component.
+    assert (np.linalg.eigvalsh(D).min(axis=-1) > 0).all()
+    assert (np.einsum("ni,nij,nj->n", nu, D, nu) > 0).all()
+
+
+def test_jacobian_dot_against_finite_difference(rng):
+    eta, nu = random_states(rng, 20)
+    eta_dot = np.einsum("nij,nj->ni", dynamics.jacobian(eta), nu)
+    h = 1e-6
+    fd = (dynamics.jacobian(eta + h * eta_dot) - dynamics.jacobian(eta - h * eta_dot)) / (2 * h)
+    np.testing.assert_allclose(dynamics.jacobian_dot(eta, eta_dot), fd, atol=1e-6)
+
+
+def test_kernel_jacobian_dot_nu_matches_matrix_form(rng):
+    eta, nu = random_states(rng, 20)
+    R, eta_dot, A = np.zeros((3, 3)), np.zeros(6), np.zeros(6)
+    for e, n in zip(eta, nu):
+        kernel.kinematics(e, n, R, eta_dot)
+        np.testing.assert_allclose(eta_dot, dynamics.jacobian(e) @ n, atol=1e-12)
+        kernel.jacobian_dot_nu(e, n, R, eta_dot, A)
+        np.testing.assert_allclose(A, dynamics.jacobian_dot(e, eta_dot) @ n, atol=1e-9)
+
+
+def test_restoring_matches_appendix_formula(vehicle, rng):
+    """Kernel's expanded Appendix I.4 rows == the wrench built from forces at r_g and r_b."""
+    eta, _ = random_states(rng, 30)
+    g = np.zeros(6)
+    for e in eta:
+        kernel.restoring(vehicle.packed(), e, g)
+        np.testing.assert_allclose(g, dynamics.restoring(vehicle, e), atol=1e-12)
+
+
+def test_neutral_buoyancy_and_righting_moment_signs(vehicle):
+    assert vehicle.weight == pytest.approx(vehicle.buoyancy)       # rho = 1000: neutral
+    level = dynamics.restoring(vehicle, np.zeros(6))
+    np.testing.assert_allclose(level, 0.0, atol=1e-12)
+    rolled = dynamics.restoring(vehicle, np.array([0, 0, 0, 0.2, 0, 0]))
+    pitched = dynamics.restoring(vehicle, np.array([0, 0, 0, 0, 0.2, 0]))
+    # The restoring term enters as -g: a positive roll/pitch gets a negative (righting) moment.
+    assert -rolled[3] < 0 and -pitched[4] < 0
+    salty = dataclasses.replace(vehicle, water_density=1025.0)
+    assert -dynamics.restoring(salty, np.zeros(6))[2] < 0            # positively buoyant: pushed up (-z)
+
+
+def test_kernel_state_derivative_matches_matrix_form(vehicle, rng):
+    eta, nu = random_states(rng, 30)
+    tau = rng.normal(0, 20, (30, 6))
+    p = vehicle.packed()
+    dx, ws = np.zeros(12), np.zeros(40)
+    for e, n, t in zip(eta, nu, tau):
+        kernel.state_derivative(p, np.concatenate([e, n]), t, np.zeros(3), dx, ws)
+        np.testing.assert_allclose(dx[:6], dynamics.jacobian(e) @ n, atol=1e-12)
+        np.testing.assert_allclose(dx[6:], dynamics.acceleration(vehicle, e, n, t), rtol=1e-10, atol=1e-9)
+
+
+def test_rk4_converges_at_fourth_order(vehicle):
+    """Halving the step cuts the error ~16x; the 10 ms step is converged well below a millimetre."""
+    p, env = vehicle.packed(), np.zeros(kernel.E_SIZE)
+    tau = np.array([30.0, -10.0, 15.0, 0.5, -0.3, 1.0])
+
+    def run(h, t_end=2.0):
+        x = np.concatenate([np.zeros(6), [0.2, 0, 0, 0.1, 0, 0.3]])
+        ws = np.zeros(128)
+        for k in range(int(round(t_end / h))):
+            kernel.rk4_step(p, env, x, tau, k * h, h, ws)
+        return x
+
+    exact = run(0.000625)
+    errors = [np.abs(run(h) - exact).max() for h in (0.04, 0.02, 0.01)]
+    assert 10 < errors[0] / errors[1] < 22 and 10 < errors[1] / errors[2] < 22
+    assert errors[2] < 1e-6
+
+
+def test_no_thrust_neutral_vehicle_stays_put(vehicle):
+    p, env = vehicle.packed(), np.zeros(kernel.E_SIZE)
+    x = np.concatenate([[1.0, 2.0, 3.0, 0, 0, 0.5], np.zeros(6)])
+    ws = np.zeros(128)
+    for k in range(1000):
+        kernel.rk4_step(p, env, x, np.zeros(6), k * 0.01, 0.01, ws)
+    np.testing.assert_allclose(x, [1.0, 2.0, 3.0, 0, 0, 0.5] + [0] * 6, atol=1e-12)
+
+
+def test_surge_terminal_speed_balances_drag(vehicle):
+    """Constant surge force F settles where F = (X_u + X_u|u| u) u."""
+    p, env = vehicle.packed(), np.zeros(kernel.E_SIZE)
+    x, ws = np.zeros(12), np.zeros(128)
+    force = 20.0
+    for k in range(3000):
+        kernel.rk4_step(p, env, x, np.array([force, 0, 0, 0, 0, 0]), k * 0.01, 0.01, ws)
+    xu, xuu = vehicle.linear_damping[0], vehicle.quadratic_damping[0]
+    expected = (-xu + np.sqrt(xu**2 + 4 * xuu * force)) / (2 * xuu)
+    assert x[6] == pytest.approx(expected, rel=1e-6)

@@ -1,0 +1,115 @@
+"""Closed-loop simulation: the report's line with the fuzzy controller, batch consistency, and the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rov_mav import dynamics, kernel, law
+from rov_mav.controller import load_settings
+from rov_mav.metrics import run_metrics
+from rov_mav.mission import load_mission
+from rov_mav.simulation import simulate
+
+from conftest import MISSIONS
+
+
+@pytest.fixture(scope="module")
+def line():
+    return load_mission(MISSIONS / "line.yaml")
+
+
+def metrics_of(trace, mission, kind):
+    return run_metrics(mission.name, kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau, trace.tau_hat,
+                       trace.true_disturbance, trace.completed)
+
+
+def test_fuzzy_on_the_line_tracks_within_2_cm_and_estimates_head_to_tau_d(vehicle, line):
+    trace = simulate(line, load_settings("fuzzy"), vehicle)
+    m = metrics_of(trace, line, "fuzzy")
+    assert m["completed"]
+    assert m["rms_position_error_steady_m"] <= 0.02
+    tau_d = line.environment.disturbance
+    err = np.abs(trace.tau_hat - tau_d)
+    half = len(trace.t) // 2
+    for i in np.flatnonzero(tau_d):
+        assert err[-1, i] < 0.75 * abs(tau_d[i]), f"DOF {i} estimate not heading to tau_d"
+        assert err[-1, i] <= err[half, i] + 1e-9, f"DOF {i} estimate error grew in the second half"
+
+
+def test_adaptation_removes_the_baselines_steady_error(vehicle, line):
+    base = metrics_of(simulate(line, load_settings("baseline"), vehicle), line, "baseline")
+    fuzzy = metrics_of(simulate(line, load_settings("fuzzy"), vehicle), line, "fuzzy")
+    assert fuzzy["rms_position_error_steady_m"] < 0.5 * base["rms_position_error_steady_m"]
+    assert fuzzy["rms_attitude_error_steady_rad"] < 0.1 * base["rms_attitude_error_steady_rad"]
+
+
+def test_baseline_steady_error_matches_the_closed_form(vehicle, line):
+    """ERRATA: with tau_hat = 0 the steady error is e_ss = k1^-1 k2^-1 J M^-1 tau_d at the final pose."""
+    settings = load_settings("baseline")
+    trace = simulate(line, settings, vehicle)
+    error = law.tracking_error(trace.eta[-1], trace.reference[-1, :6])
+    JMinv = dynamics.jacobian(trace.eta[-1]) @ np.linalg.inv(vehicle.mass_matrix)
+    expected = JMinv @ line.environment.disturbance / (settings.k1 * settings.k2)
+    np.testing.assert_allclose(error, expected, rtol=0.02, atol=1e-5)
+    assert abs(error[2]) > 0.01      # a centimetre in depth: the error adaptation should remove
+
+
+def test_batch_runs_equal_single_runs(vehicle, line):
+    """One batched call over several gain sets gives exactly the costs of separate calls."""
+    settings = load_settings("fuzzy")
+    ref = line.sampled_reference(0.01, 10.0)
+    gains = np.stack([settings.gains, settings.gains * 0.5, settings.gains * 2.0])
+    x0 = np.concatenate([line.start_pose, np.zeros(6)])
+    empty = [np.zeros((3, 0, 6)) for _ in range(6)]
+
+    def run(g):
+        n = g.shape[0]
+        cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
+        kernel.simulate_batch(np.tile(vehicle.packed(), (n, 1)), np.tile(line.environment.packed(), (n, 1)),
+                              vehicle.packed(), g, *settings.kernel_arguments(), ref, 0.01, 1, x0,
+                              np.zeros(n, dtype=np.int64), np.ones(6), np.ones(6),
+                              *[e[:n] for e in empty], cost, steps)
+        return cost
+
+    together = run(gains)
+    apart = np.concatenate([run(gains[i:i + 1]) for i in range(3)])
+    np.testing.assert_array_equal(together, apart)
+    assert len(set(together)) == 3
+
+
+def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
+    settings = load_settings("fuzzy")
+    trace = simulate(line, settings.with_gains(np.full(12, 400.0)), vehicle, dt=0.05)
+    assert not trace.completed
+    assert np.isfinite(trace.eta).all()
+
+
+def test_simulate_command_writes_metrics_and_figures(tmp_path):
+    out = tmp_path / "run"
+    metrics = tmp_path / "m.json"
+    proc = subprocess.run([sys.executable, "-m", "rov_mav.cli", "simulate", str(MISSIONS / "line.yaml"),
+                           "--controller", "constant", "--duration", "20", "--out", str(out),
+                           "--metrics", str(metrics)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(metrics.read_text())
+    for key in ("mission", "controller", "duration_s", "rms_position_error_m", "max_position_error_m",
+                "rms_attitude_error_rad", "rms_position_error_steady_m", "rms_attitude_error_steady_rad",
+                "control_effort", "final_disturbance_estimate", "true_disturbance", "completed"):
+        assert key in data
+    assert data["controller"] == "constant" and data["duration_s"] == pytest.approx(20.0)
+    assert data["true_disturbance"] == [-1.0, 1.0, 2.0, 0.1, 0.1, 0.0]
+    assert len(data["final_disturbance_estimate"]) == 6
+    assert sorted(p.name for p in out.glob("*.png")) == ["dofs.png", "estimates.png", "path3d.png", "rates.png"]
+
+
+def test_plant_params_mismatch_changes_the_run(tmp_path, vehicle, line):
+    """--plant-params: a plant 20 % heavier than the model tracks worse than the matched one."""
+    settings = load_settings("baseline")
+    matched = metrics_of(simulate(line, settings, vehicle), line, "baseline")
+    heavy = metrics_of(simulate(line, settings, vehicle, plant=vehicle.scaled(1.2)), line, "baseline")
+    assert heavy["rms_position_error_steady_m"] > matched["rms_position_error_steady_m"] * 1.1
