@@ -13,6 +13,7 @@ from rov_mav.config import ConfigError
 
 SUBCOMMAND_MODULES = (
     "rov_mav.commands.simulate",
+    "sim_bridge.cli",
 )
 
 

@@ -100,7 +100,6 @@ class Controller:
         self._model = model.packed()
         self._args = settings.kernel_arguments()
         self.tau_hat = np.zeros(6)
-        self._ws = np.zeros(64)
 
     def step(self, eta: np.ndarray, nu: np.ndarray, reference: np.ndarray, dt: float) -> ControlOutput:
         """tau for the measured state against reference (18,), then the estimate advanced by dt seconds."""
@@ -108,5 +107,5 @@ class Controller:
         tau, s, grad, gamma = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
         kernel.controller_step(self._model, self.settings.k1, self.settings.k2, schedule, gamma_const, table, xmax,
                                d_max, np.asarray(eta, float), np.asarray(nu, float), np.asarray(reference, float),
-                               float(dt), self.tau_hat, tau, s, grad, gamma, self._ws)
+                               float(dt), self.tau_hat, tau, s, grad, gamma)
         return ControlOutput(tau, self.tau_hat.copy(), s, grad, gamma)

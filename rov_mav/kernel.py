@@ -46,210 +46,181 @@ MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular
 MAX_SPEED = 20.0        # m/s or rad/s, any component of nu
 DIVERGED_COST = 1.0e12
 
-
-@njit(cache=True)
-def rotation(phi, theta, psi, R):
-    """R(Theta), ZYX body-to-NED rotation (ERRATA 1, Fossen 2021 eq. 2.18); writes R (3, 3)."""
-    cphi, sphi = math.cos(phi), math.sin(phi)
-    cth, sth = math.cos(theta), math.sin(theta)
-    cpsi, spsi = math.cos(psi), math.sin(psi)
-    R[0, 0] = cpsi * cth
-    R[0, 1] = -spsi * cphi + cpsi * sth * sphi
-    R[0, 2] = spsi * sphi + cpsi * cphi * sth
-    R[1, 0] = spsi * cth
-    R[1, 1] = cpsi * cphi + sphi * sth * spsi
-    R[1, 2] = -cpsi * sphi + sth * spsi * cphi
-    R[2, 0] = -sth
-    R[2, 1] = cth * sphi
-    R[2, 2] = cth * cphi
+# Floating-point licences for the compiled code: fused multiply-add and reassociation, but NaN and inf keep their
+# meaning (the divergence check relies on them).
+FAST = {"contract", "reassoc", "arcp", "nsz", "afn"}
 
 
-@njit(cache=True)
-def euler_rates(phi, theta, w, out):
-    """T(Theta) w: Euler-angle rates from body rates w (Eq. 2.4); writes out (3,)."""
-    cphi, sphi = math.cos(phi), math.sin(phi)
-    cth, tth = math.cos(theta), math.tan(theta)
-    out[0] = w[0] + sphi * tth * w[1] + cphi * tth * w[2]
-    out[1] = cphi * w[1] - sphi * w[2]
-    out[2] = (sphi * w[1] + cphi * w[2]) / cth
+@njit(cache=True, fastmath=FAST)
+def rotation(cphi, sphi, cth, sth, cpsi, spsi):
+    """R(Theta), ZYX body-to-NED rotation (ERRATA 1, Fossen 2021 eq. 2.18), row-major 9-tuple."""
+    return (cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth,
+            spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi,
+            -sth, cth * sphi, cth * cphi)
 
 
-@njit(cache=True)
-def kinematics(eta, nu, R, eta_dot):
-    """eta_dot = J(eta) nu (Eq. 2.1); fills R with R(Theta) on the way."""
-    rotation(eta[3], eta[4], eta[5], R)
-    for i in range(3):
-        eta_dot[i] = R[i, 0] * nu[0] + R[i, 1] * nu[1] + R[i, 2] * nu[2]
-    euler_rates(eta[3], eta[4], nu[3:6], eta_dot[3:6])
+@njit(cache=True, fastmath=FAST)
+def euler_rates(cphi, sphi, cth, sth, p, q, r):
+    """T(Theta) [p, q, r]: Euler-angle rates from body rates (Eq. 2.4), 3-tuple."""
+    return (p + (sphi * q + cphi * r) * sth / cth, cphi * q - sphi * r, (sphi * q + cphi * r) / cth)
 
 
-@njit(cache=True)
-def jacobian_dot_nu(eta, nu, R, eta_dot, out):
-    """A = J_dot(eta, eta_dot) nu (Eq. 2.15), with R and eta_dot from `kinematics`; writes out (6,).
+@njit(cache=True, fastmath=FAST)
+def jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r):
+    """A = J_dot(eta, eta_dot) nu (Eq. 2.15), 6-tuple.
 
     Translation: R_dot nu1 = R (omega x nu1). Rotation: T_dot nu2 with T_dot = phi_dot dT/dphi + theta_dot dT/dtheta."""
-    p, q, r = nu[3], nu[4], nu[5]
-    cx = q * nu[2] - r * nu[1]
-    cy = r * nu[0] - p * nu[2]
-    cz = p * nu[1] - q * nu[0]
-    for i in range(3):
-        out[i] = R[i, 0] * cx + R[i, 1] * cy + R[i, 2] * cz
-    phi, theta = eta[3], eta[4]
-    dphi, dth = eta_dot[3], eta_dot[4]
-    cphi, sphi = math.cos(phi), math.sin(phi)
-    cth, sth = math.cos(theta), math.sin(theta)
+    cx = q * w - r * v
+    cy = r * u - p * w
+    cz = p * v - q * u
     tth = sth / cth
     sec2 = 1.0 / (cth * cth)
-    out[3] = dphi * (cphi * tth * q - sphi * tth * r) + dth * sec2 * (sphi * q + cphi * r)
-    out[4] = dphi * (-sphi * q - cphi * r)
-    out[5] = dphi * (cphi * q - sphi * r) / cth + dth * sth * sec2 * (sphi * q + cphi * r)
+    return (R[0] * cx + R[1] * cy + R[2] * cz,
+            R[3] * cx + R[4] * cy + R[5] * cz,
+            R[6] * cx + R[7] * cy + R[8] * cz,
+            dphi * (cphi * tth * q - sphi * tth * r) + dth * sec2 * (sphi * q + cphi * r),
+            dphi * (-sphi * q - cphi * r),
+            dphi * (cphi * q - sphi * r) / cth + dth * sth * sec2 * (sphi * q + cphi * r))
 
 
-@njit(cache=True)
-def coriolis_times_nu(p, nu, out):
-    """C(nu) nu with C built from M by Fossen's m2c (ERRATA 5); writes out (6,).
+@njit(cache=True, fastmath=FAST)
+def _mass_row(m, row, u, v, w, p, q, r):
+    b = P_M + 6 * row
+    return m[b] * u + m[b + 1] * v + m[b + 2] * w + m[b + 3] * p + m[b + 4] * q + m[b + 5] * r
+
+
+@njit(cache=True, fastmath=FAST)
+def coriolis_times_nu(m, u, v, w, p, q, r):
+    """C(nu) nu with C built from M by Fossen's m2c (ERRATA 5), 6-tuple.
 
     C = [[0, -S(a)], [-S(a), -S(b)]], a = M11 nu1 + M12 nu2, b = M21 nu1 + M22 nu2, S(x)y = x cross y."""
-    a = np.empty(3)
-    b = np.empty(3)
-    for i in range(3):
-        ai = 0.0
-        bi = 0.0
-        for j in range(6):
-            ai += p[P_M + 6 * i + j] * nu[j]
-            bi += p[P_M + 6 * (i + 3) + j] * nu[j]
-        a[i] = ai
-        b[i] = bi
-    u, v, w, pp, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
-    out[0] = -(a[1] * r - a[2] * q)
-    out[1] = -(a[2] * pp - a[0] * r)
-    out[2] = -(a[0] * q - a[1] * pp)
-    out[3] = -(a[1] * w - a[2] * v) - (b[1] * r - b[2] * q)
-    out[4] = -(a[2] * u - a[0] * w) - (b[2] * pp - b[0] * r)
-    out[5] = -(a[0] * v - a[1] * u) - (b[0] * q - b[1] * pp)
+    a0 = _mass_row(m, 0, u, v, w, p, q, r)
+    a1 = _mass_row(m, 1, u, v, w, p, q, r)
+    a2 = _mass_row(m, 2, u, v, w, p, q, r)
+    b0 = _mass_row(m, 3, u, v, w, p, q, r)
+    b1 = _mass_row(m, 4, u, v, w, p, q, r)
+    b2 = _mass_row(m, 5, u, v, w, p, q, r)
+    return (-(a1 * r - a2 * q), -(a2 * p - a0 * r), -(a0 * q - a1 * p),
+            -(a1 * w - a2 * v) - (b1 * r - b2 * q),
+            -(a2 * u - a0 * w) - (b2 * p - b0 * r),
+            -(a0 * v - a1 * u) - (b0 * q - b1 * p))
 
 
-@njit(cache=True)
-def damping_times_nu(p, nu, out):
-    """D(nu) nu = (D_l + D_nl(|nu|)) nu (Appendix I.3, positive magnitudes); writes out (6,)."""
-    for i in range(6):
-        out[i] = (p[P_DLIN + i] + p[P_DQUAD + i] * abs(nu[i])) * nu[i]
+@njit(cache=True, fastmath=FAST)
+def damping_times_nu(m, u, v, w, p, q, r):
+    """D(nu) nu = (D_l + D_nl(|nu|)) nu (Appendix I.3, positive magnitudes), 6-tuple."""
+    lin, quad = P_DLIN, P_DQUAD
+    return ((m[lin] + m[quad] * abs(u)) * u, (m[lin + 1] + m[quad + 1] * abs(v)) * v,
+            (m[lin + 2] + m[quad + 2] * abs(w)) * w, (m[lin + 3] + m[quad + 3] * abs(p)) * p,
+            (m[lin + 4] + m[quad + 4] * abs(q)) * q, (m[lin + 5] + m[quad + 5] * abs(r)) * r)
 
 
-@njit(cache=True)
-def restoring(p, eta, out):
-    """g(eta), gravity and buoyancy (Appendix I.4); writes out (6,)."""
-    W, B = p[P_W], p[P_B]
-    xg, yg, zg = p[P_RG], p[P_RG + 1], p[P_RG + 2]
-    xb, yb, zb = p[P_RB], p[P_RB + 1], p[P_RB + 2]
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    out[0] = (W - B) * sth
-    out[1] = -(W - B) * cth * sphi
-    out[2] = -(W - B) * cth * cphi
-    out[3] = -(yg * W - yb * B) * cth * cphi + (zg * W - zb * B) * cth * sphi
-    out[4] = (zg * W - zb * B) * sth + (xg * W - xb * B) * cth * cphi
-    out[5] = -(xg * W - xb * B) * cth * sphi - (yg * W - yb * B) * sth
+@njit(cache=True, fastmath=FAST)
+def restoring(m, cphi, sphi, cth, sth):
+    """g(eta), gravity and buoyancy (Appendix I.4), 6-tuple."""
+    W, B = m[P_W], m[P_B]
+    gx = m[P_RG] * W - m[P_RB] * B
+    gy = m[P_RG + 1] * W - m[P_RB + 1] * B
+    gz = m[P_RG + 2] * W - m[P_RB + 2] * B
+    return ((W - B) * sth, -(W - B) * cth * sphi, -(W - B) * cth * cphi,
+            -gy * cth * cphi + gz * cth * sphi, gz * sth + gx * cth * cphi, -gx * cth * sphi - gy * sth)
 
 
-@njit(cache=True)
-def state_derivative(p, x, tau, current_ned, dx, ws):
+@njit(cache=True, fastmath=FAST)
+def state_derivative(m, x, tau, current_ned, dx):
     """d/dt [eta; nu] for the plant (Eqs. 2.1, 2.7): M nu_dot = tau - C(nu) nu - D(nu_r) nu_r - g(eta).
 
     `tau` is the total body wrench (control + disturbance). A water current enters through the relative velocity
-    nu_r = nu - [R^T v_c; 0] in the damping. x, dx: (12,); ws: workspace (40,)."""
-    eta = x[0:6]
-    nu = x[6:12]
-    R = ws[0:9].reshape((3, 3))
-    cnu = ws[9:15]
-    dnu = ws[15:21]
-    gvec = ws[21:27]
-    nu_r = ws[27:33]
-    kinematics(eta, nu, R, dx[0:6])
-    for i in range(3):
-        nu_r[i] = nu[i] - (R[0, i] * current_ned[0] + R[1, i] * current_ned[1] + R[2, i] * current_ned[2])
-        nu_r[i + 3] = nu[i + 3]
-    coriolis_times_nu(p, nu, cnu)
-    damping_times_nu(p, nu_r, dnu)
-    restoring(p, eta, gvec)
+    nu_r = nu - [R^T v_c; 0] in the damping. x, dx: (12,)."""
+    cphi, sphi = math.cos(x[3]), math.sin(x[3])
+    cth, sth = math.cos(x[4]), math.sin(x[4])
+    cpsi, spsi = math.cos(x[5]), math.sin(x[5])
+    u, v, w, p, q, r = x[6], x[7], x[8], x[9], x[10], x[11]
+    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
+    dx[0] = R[0] * u + R[1] * v + R[2] * w
+    dx[1] = R[3] * u + R[4] * v + R[5] * w
+    dx[2] = R[6] * u + R[7] * v + R[8] * w
+    dx[3], dx[4], dx[5] = euler_rates(cphi, sphi, cth, sth, p, q, r)
+    cn, ce, cd = current_ned[0], current_ned[1], current_ned[2]
+    ur = u - (R[0] * cn + R[3] * ce + R[6] * cd)
+    vr = v - (R[1] * cn + R[4] * ce + R[7] * cd)
+    wr = w - (R[2] * cn + R[5] * ce + R[8] * cd)
+    c = coriolis_times_nu(m, u, v, w, p, q, r)
+    d = damping_times_nu(m, ur, vr, wr, p, q, r)
+    g = restoring(m, cphi, sphi, cth, sth)
+    f0 = tau[0] - c[0] - d[0] - g[0]
+    f1 = tau[1] - c[1] - d[1] - g[1]
+    f2 = tau[2] - c[2] - d[2] - g[2]
+    f3 = tau[3] - c[3] - d[3] - g[3]
+    f4 = tau[4] - c[4] - d[4] - g[4]
+    f5 = tau[5] - c[5] - d[5] - g[5]
     for i in range(6):
-        acc = 0.0
-        for j in range(6):
-            acc += p[P_MINV + 6 * i + j] * (tau[j] - cnu[j] - dnu[j] - gvec[j])
-        dx[6 + i] = acc
+        b = P_MINV + 6 * i
+        dx[6 + i] = m[b] * f0 + m[b + 1] * f1 + m[b + 2] * f2 + m[b + 3] * f3 + m[b + 4] * f4 + m[b + 5] * f5
 
 
-@njit(cache=True)
-def disturbance(env, t, out):
-    """tau_d(t): constant plus a sinusoid per DOF (body frame, N and N m); writes out (6,)."""
+@njit(cache=True, fastmath=FAST)
+def disturbance(env, t, tau, out):
+    """out = tau + tau_d(t), tau_d a constant plus a sinusoid per DOF (body frame, N and N m)."""
     period = env[E_PERIOD]
     phase = math.sin(2.0 * math.pi * t / period) if period > 0.0 else 0.0
     for i in range(6):
-        out[i] = env[E_DIST + i] + env[E_AMP + i] * phase
+        out[i] = tau[i] + env[E_DIST + i] + env[E_AMP + i] * phase
 
 
-@njit(cache=True)
-def rk4_step(p, env, x, tau, t, h, ws):
+@njit(cache=True, fastmath=FAST)
+def rk4_step(m, env, x, tau, t, h, ws):
     """Advance the plant state x (12,) in place by h seconds with the control wrench tau held (classic RK4).
 
-    The disturbance tau_d(t) is evaluated at each stage. ws: workspace (128,)."""
+    The disturbance tau_d(t) is evaluated at t, t + h/2 and t + h. ws: workspace (80,)."""
     k1 = ws[0:12]
     k2 = ws[12:24]
     k3 = ws[24:36]
     k4 = ws[36:48]
     xs = ws[48:60]
     total = ws[60:66]
-    dist = ws[66:72]
-    inner = ws[72:112]
     current = env[E_CURRENT:E_CURRENT + 3]
-    for stage in range(4):
-        ts = t if stage == 0 else (t + h if stage == 3 else t + 0.5 * h)
-        disturbance(env, ts, dist)
-        for i in range(6):
-            total[i] = tau[i] + dist[i]
-        if stage == 0:
-            state_derivative(p, x, total, current, k1, inner)
-        elif stage == 1:
-            for i in range(12):
-                xs[i] = x[i] + 0.5 * h * k1[i]
-            state_derivative(p, xs, total, current, k2, inner)
-        elif stage == 2:
-            for i in range(12):
-                xs[i] = x[i] + 0.5 * h * k2[i]
-            state_derivative(p, xs, total, current, k3, inner)
-        else:
-            for i in range(12):
-                xs[i] = x[i] + h * k3[i]
-            state_derivative(p, xs, total, current, k4, inner)
+    disturbance(env, t, tau, total)
+    state_derivative(m, x, total, current, k1)
+    disturbance(env, t + 0.5 * h, tau, total)
+    for i in range(12):
+        xs[i] = x[i] + 0.5 * h * k1[i]
+    state_derivative(m, xs, total, current, k2)
+    for i in range(12):
+        xs[i] = x[i] + 0.5 * h * k2[i]
+    state_derivative(m, xs, total, current, k3)
+    disturbance(env, t + h, tau, total)
+    for i in range(12):
+        xs[i] = x[i] + h * k3[i]
+    state_derivative(m, xs, total, current, k4)
     for i in range(12):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def wrap_angle(a):
     """Wrap an angle to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@njit(cache=True)
-def control_law(p, k1, k2, eta, nu, ref, tau_hat, tau, s, grad, ws):
+@njit(cache=True, fastmath=FAST)
+def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
     """The corrected backstepping law (ERRATA 2, Eq. 2.17) and the adaptation direction (ERRATA 3, Eq. 2.22).
 
     tau  = M J^-1 (eta_dd_d - k1 e_dot - J_dot nu - k2 s) + C(nu) nu + D(nu) nu + g(eta) - tau_hat
     s    = e_dot + k1 e (Eq. 2.14), e = eta - eta_d with angle errors wrapped (Eq. 2.13)
     grad = (J M^-1)^T s = M^-T J^T s, so that d(tau_hat)/dt = Gamma grad.
-    ref: (18,) = [eta_d, eta_dot_d, eta_ddot_d]. Writes tau, s, grad (6,); ws: workspace (64,)."""
-    R = ws[0:9].reshape((3, 3))
-    eta_dot = ws[9:15]
-    A = ws[15:21]
-    a = ws[21:27]
-    w = ws[27:33]
-    cnu = ws[33:39]
-    dnu = ws[39:45]
-    gvec = ws[45:51]
-    jts = ws[51:57]
-    kinematics(eta, nu, R, eta_dot)
-    jacobian_dot_nu(eta, nu, R, eta_dot, A)
+    ref: (18,) = [eta_d, eta_dot_d, eta_ddot_d]. Writes tau, s, grad (6,)."""
+    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
+    cth, sth = math.cos(eta[4]), math.sin(eta[4])
+    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
+    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
+    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
+               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
+    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
+    a = grad    # scratch for the virtual acceleration; grad is written only after a is consumed
     for i in range(6):
         e = eta[i] - ref[i]
         if i >= 3:
@@ -257,37 +228,33 @@ def control_law(p, k1, k2, eta, nu, ref, tau_hat, tau, s, grad, ws):
         e_dot = eta_dot[i] - ref[6 + i]
         s[i] = e_dot + k1[i] * e
         a[i] = ref[12 + i] - k1[i] * e_dot - A[i] - k2[i] * s[i]
-    # w = J^-1 a: R^T on the translation, T^-1 on the rotation.
-    for i in range(3):
-        w[i] = R[0, i] * a[0] + R[1, i] * a[1] + R[2, i] * a[2]
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    w[3] = a[3] - sth * a[5]
-    w[4] = cphi * a[4] + cth * sphi * a[5]
-    w[5] = -sphi * a[4] + cth * cphi * a[5]
-    coriolis_times_nu(p, nu, cnu)
-    damping_times_nu(p, nu, dnu)
-    restoring(p, eta, gvec)
+    # wv = J^-1 a: R^T on the translation, T^-1 on the rotation.
+    wv0 = R[0] * a[0] + R[3] * a[1] + R[6] * a[2]
+    wv1 = R[1] * a[0] + R[4] * a[1] + R[7] * a[2]
+    wv2 = R[2] * a[0] + R[5] * a[1] + R[8] * a[2]
+    wv3 = a[3] - sth * a[5]
+    wv4 = cphi * a[4] + cth * sphi * a[5]
+    wv5 = -sphi * a[4] + cth * cphi * a[5]
+    c = coriolis_times_nu(m, u, v, w, p, q, r)
+    d = damping_times_nu(m, u, v, w, p, q, r)
+    g = restoring(m, cphi, sphi, cth, sth)
     for i in range(6):
-        acc = 0.0
-        for j in range(6):
-            acc += p[P_M + 6 * i + j] * w[j]
-        tau[i] = acc + cnu[i] + dnu[i] + gvec[i] - tau_hat[i]
-    # grad = M^-T (J^T s): J^T s = [R^T s1 ; T^T s2].
-    for i in range(3):
-        jts[i] = R[0, i] * s[0] + R[1, i] * s[1] + R[2, i] * s[2]
+        tau[i] = _mass_row(m, i, wv0, wv1, wv2, wv3, wv4, wv5) + c[i] + d[i] + g[i] - tau_hat[i]
+    # grad = M^-T (J^T s), J^T s = [R^T s1 ; T^T s2].
     tth = sth / cth
-    jts[3] = s[3]
-    jts[4] = sphi * tth * s[3] + cphi * s[4] + sphi / cth * s[5]
-    jts[5] = cphi * tth * s[3] - sphi * s[4] + cphi / cth * s[5]
+    j0 = R[0] * s[0] + R[3] * s[1] + R[6] * s[2]
+    j1 = R[1] * s[0] + R[4] * s[1] + R[7] * s[2]
+    j2 = R[2] * s[0] + R[5] * s[1] + R[8] * s[2]
+    j3 = s[3]
+    j4 = sphi * tth * s[3] + cphi * s[4] + sphi / cth * s[5]
+    j5 = cphi * tth * s[3] - sphi * s[4] + cphi / cth * s[5]
     for i in range(6):
-        acc = 0.0
-        for j in range(6):
-            acc += p[P_MINV + 6 * j + i] * jts[j]
-        grad[i] = acc
+        b = P_MINV + i
+        grad[i] = (m[b] * j0 + m[b + 6] * j1 + m[b + 12] * j2 + m[b + 18] * j3 + m[b + 24] * j4
+                   + m[b + 30] * j5)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
     """Gamma per body DOF: constant, or the tabulated Mamdani FIS of |grad_i| (Eq. 2.29); writes gamma (6,)."""
     n = table.shape[1]
@@ -303,7 +270,7 @@ def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
             gamma[i] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
     """One explicit step of d(tau_hat)/dt = Gamma (J M^-1)^T s (ERRATA 3), projected onto |tau_hat_i| <= d_max_i
     (Assumption 2). Baseline (no schedule) keeps tau_hat = 0."""
@@ -315,18 +282,18 @@ def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
             tau_hat[i] = min(max(value, -d_max[i]), d_max[i])
 
 
-@njit(cache=True)
-def controller_step(p, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta, nu, ref, dt,
-                    tau_hat, tau, s, grad, gamma, ws):
+@njit(cache=True, fastmath=FAST)
+def controller_step(m, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta, nu, ref, dt,
+                    tau_hat, tau, s, grad, gamma):
     """One control tick: tau from the law with the current estimate, then the estimate advanced by dt.
 
-    tau_hat is updated in place; tau, s, grad, gamma are written (6,) each; ws: workspace (64,)."""
-    control_law(p, k1, k2, eta, nu, ref, tau_hat, tau, s, grad, ws)
+    tau_hat is updated in place; tau, s, grad, gamma are written (6,) each."""
+    control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad)
     adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma)
     adapt(schedule, grad, gamma, d_max, dt, tau_hat)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def _diverged(x):
     for i in range(12):
         if not math.isfinite(x[i]):
@@ -339,7 +306,7 @@ def _diverged(x):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST, nogil=True)
 def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_xmax, d_max, ref, dt,
                    substeps, x0, seeds, cost_q, cost_r, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log,
                    cost, steps_done):
@@ -349,7 +316,8 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
     gains (B, 12) = [k1 | k2]; ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
     cost (B,) receives J = sum (s^T Q s + tau^T R tau) dt with Q = diag(cost_q), R = diag(cost_r) (Eq. 2.32);
     a diverging run stops early with DIVERGED_COST. steps_done (B,) receives the ticks completed.
-    The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording."""
+    The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
+    Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     n_runs = gains.shape[0]
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[1] > 0
@@ -357,8 +325,7 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
     for b in range(n_runs):
         np.random.seed(seeds[b])
         x = x0.copy()
-        ws_plant = np.zeros(128)
-        ws_ctrl = np.zeros(64)
+        ws_plant = np.zeros(80)
         eta_m = np.zeros(6)
         nu_m = np.zeros(6)
         tau_hat = np.zeros(6)
@@ -378,7 +345,7 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
                 sigma = noise[2] if i < 3 else noise[3]
                 nu_m[i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
             controller_step(ctrl, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta_m, nu_m, ref[k],
-                            dt, tau_hat, tau, s, grad, gamma, ws_ctrl)
+                            dt, tau_hat, tau, s, grad, gamma)
             if record:
                 for i in range(6):
                     eta_log[b, k, i] = x[i]

@@ -42,6 +42,9 @@ MOTOR1, MOTOR8 = 33, 40
 SERVOS = 16
 # Pilot axis of each RC channel 1..6 in the mixer's order (roll, pitch, yaw, throttle, forward, lateral).
 PILOT_CHANNEL_OF_AXIS = (1, 0, 3, 2, 4, 5)
+_RC_RANGE = [(f"RC{ch + 1}_MIN", f"RC{ch + 1}_TRIM", f"RC{ch + 1}_MAX") for ch in PILOT_CHANNEL_OF_AXIS]
+_MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, 9)]
+_SERVO_FUNCTION = [f"SERVO{n}_FUNCTION" for n in range(1, SERVOS + 1)]
 
 
 class ArduSub:
@@ -141,17 +144,15 @@ class ArduSub:
     def pilot_axes(self) -> np.ndarray:
         """The pilot's (roll, pitch, yaw, throttle, forward, lateral) in [-1, 1] from RC channels 1-6."""
         p = self.params
-        return np.array([
-            self.rc.norm_input(ch, p[f"RC{ch + 1}_MIN"], p[f"RC{ch + 1}_TRIM"], p[f"RC{ch + 1}_MAX"])
-            for ch in PILOT_CHANNEL_OF_AXIS
-        ])
+        return np.array([self.rc.norm_input(ch, p[low], p[trim], p[high])
+                         for ch, (low, trim, high) in zip(PILOT_CHANNEL_OF_AXIS, _RC_RANGE)])
 
     def motor_pwm(self) -> np.ndarray:
         """PWM (8,) of motors 1..8: the mixer when armed, neutral when disarmed."""
         if not self.armed:
             return np.full(8, 1500, dtype=np.int32)
         p = self.params
-        directions = np.array([p[f"MOT_{i}_DIRECTION"] for i in range(1, 9)])
+        directions = np.array([p[name] for name in _MOTOR_DIRECTION])
         outputs = mixer.mix(self.pilot_axes(), np.where(directions < 0, -1.0, 1.0))
         return mixer.to_pwm(outputs, p["MOT_PWM_MIN"], p["MOT_PWM_MAX"])
 
@@ -159,8 +160,8 @@ class ArduSub:
         """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs)."""
         motors = self.motor_pwm()
         out = np.zeros(SERVOS, dtype=np.int32)
-        for n in range(SERVOS):
-            function = int(self.params[f"SERVO{n + 1}_FUNCTION"])
+        for n, name in enumerate(_SERVO_FUNCTION):
+            function = int(self.params[name])
             if MOTOR1 <= function <= MOTOR8:
                 out[n] = motors[function - MOTOR1]
             elif RCIN1 <= function <= RCIN16:

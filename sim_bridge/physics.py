@@ -13,6 +13,7 @@ from rov_mav.vehicle import Vehicle
 from sim_bridge.battery import Battery
 
 VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery voltage rounded to this
+NO_PULSE_BELOW = 800            # us: an output this low (0 = unassigned) sends no pulse: the ESC stops
 
 
 class Physics:
@@ -31,6 +32,7 @@ class Physics:
 
     def step(self, pwm: np.ndarray) -> None:
         """One step of h seconds with thruster PWMs (8,) in us held."""
+        pwm = np.where(pwm < NO_PULSE_BELOW, 1500, pwm)
         voltage = round(self.battery.voltage / VOLTAGE_RESOLUTION) * VOLTAGE_RESOLUTION
         commanded = self.t200.thrust(pwm, voltage)
         self.thrusts += (commanded - self.thrusts) * self._lag

@@ -21,12 +21,12 @@ class RCInput:
         self.radio_in[:8] = 1500          # ArduSub starts its pilot and camera channels at neutral
         self.radio_in[8:11] = 1100        # lights and video switch start low
         self._override = np.zeros(CHANNELS, dtype=np.int32)
-        self._stamp = np.full(CHANNELS, np.nan)   # sim time of each active override, NaN = none
+        self._stamp = np.full(CHANNELS, -np.inf)   # sim time of each override, -inf = none
 
     def set_override(self, channel: int, value: int, t: float) -> None:
         """Override `channel` with `value` us from time `t`; value 0 releases it."""
         if value == 0:
-            self._stamp[channel] = np.nan
+            self._stamp[channel] = -np.inf
         else:
             self._override[channel] = value
             self._stamp[channel] = t
@@ -43,11 +43,12 @@ class RCInput:
 
     def update(self, t: float, override_time: float) -> None:
         """Copy live overrides into `radio_in`; expired or released channels keep their last value."""
-        live = ~np.isnan(self._stamp)
         if override_time == 0:
-            live[:] = False
-        elif override_time > 0:
-            live &= (t - np.nan_to_num(self._stamp)) < override_time
+            return
+        if override_time < 0:
+            live = self._stamp > -np.inf
+        else:
+            live = (t - self._stamp) < override_time
         self.radio_in[live] = self._override[live]
 
     def norm_input(self, channel: int, low: float, trim: float, high: float) -> float:

@@ -32,10 +32,10 @@ def test_kernel_law_matches_matrix_form(vehicle, rng):
     eta, nu = random_states(rng, 25)
     refs = random_references(rng, 25)
     tau_hat = rng.normal(0, 2, (25, 6))
-    p, ws = vehicle.packed(), np.zeros(64)
+    p = vehicle.packed()
     tau, s, grad = np.zeros(6), np.zeros(6), np.zeros(6)
     for i in range(25):
-        kernel.control_law(p, K1, K2, eta[i], nu[i], refs[i], tau_hat[i], tau, s, grad, ws)
+        kernel.control_law(p, K1, K2, eta[i], nu[i], refs[i], tau_hat[i], tau, s, grad)
         tau_ref, s_ref = law.control_law(vehicle, K1, K2, eta[i], nu[i], refs[i], tau_hat[i])
         np.testing.assert_allclose(tau, tau_ref, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(s, s_ref, atol=1e-12)

@@ -1,0 +1,29 @@
+"""What a bridge is started with: endpoints, speedup, firmware naming, environment, start state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rov_mav.environment import Environment
+
+DEFAULT_OUT = "udpout:127.0.0.1:14550"
+DEFAULT_ORIGIN = (-35.363261, 149.165230, 0.0)   # lat deg, lon deg, surface altitude m (ArduPilot SITL's home)
+DEFAULT_STEP = 0.0025                             # s: ArduSub's 400 Hz main loop
+
+
+@dataclass(frozen=True)
+class BridgeConfig:
+    """Endpoints are 'udpout:H:P', 'udpin:H:P' or 'tcpin:H:P'; params are initial parameter values by name."""
+
+    endpoints: tuple[str, ...] = (DEFAULT_OUT,)
+    speedup: float = 1.0
+    firmware: str = "4.7"
+    environment: Environment | None = None
+    vehicle_path: str | None = None
+    origin: tuple[float, float, float] = DEFAULT_ORIGIN
+    start_depth: float = 0.0
+    step: float = DEFAULT_STEP
+    seed: int = 0
+    params: dict[str, float] = field(default_factory=dict)

@@ -1,0 +1,173 @@
+"""The bridge: the emulated ArduSub, its physics and its MAVLink links in one paced loop.
+
+Each step of h simulated seconds: ArduSub's main loop (RC input, failsafes) -> servo outputs -> physics -> the
+telemetry due on each link. Between steps the loop reads the links and sleeps until the next step is due on the
+wall clock (`Pacer`). Run it blocking (`run()`, the CLI) or in a background thread (`start()` / `stop()`).
+"""
+
+from __future__ import annotations
+
+import select
+import threading
+import time
+
+import numpy as np
+
+from rov_mav.plant import Plant
+from rov_mav.thrusters import load_t200
+from rov_mav.vehicle import load_vehicle
+from sim_bridge import telemetry
+from sim_bridge.ardusub import ArduSub
+from sim_bridge.battery import Battery
+from sim_bridge.config import BridgeConfig
+from sim_bridge.link import Link, open_links
+from sim_bridge.pacing import Pacer
+from sim_bridge.params import Params
+from sim_bridge.physics import Physics
+from sim_bridge.protocol import Protocol
+from sim_bridge.schedule import Scheduler
+
+MAX_IDLE = 0.05                                   # s: longest sleep between checks for a stop request
+
+
+class Bridge:
+    """A simulated BlueROV2 Heavy running ArduSub, reachable over MAVLink."""
+
+    def __init__(self, config: BridgeConfig = BridgeConfig()):
+        if config.speedup <= 0:
+            raise ValueError("speedup must be positive")
+        self.config = config
+        self.params = Params(config.firmware)
+        for name, value in {**config.params, "SIM_SPEEDUP": config.speedup}.items():
+            if self.params.set(name, value) is None:
+                raise ValueError(f"unknown parameter {name}")
+        self.vehicle = load_vehicle(config.vehicle_path)
+        self.sub = ArduSub(self.params)
+        eta0 = np.zeros(6)
+        eta0[2] = config.start_depth
+        plant = Plant(self.vehicle, config.environment, eta0=eta0, seed=config.seed)
+        Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
+        battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
+        self.physics = Physics(self.vehicle, plant, battery, load_t200(), config.step)
+        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed)
+        self.links: list[Link] = []
+        self.schedulers: list[Scheduler] = []
+        self.steps = 0
+        self.servo = self.sub.servo_outputs()
+        self.unix_start = time.time()
+        self.pacer: Pacer | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    # -- lifecycle -------------------------------------------------------------------------------------------
+
+    def open(self) -> None:
+        """Open every link (LinkError, one line, if one cannot be opened)."""
+        self.links = open_links(list(self.config.endpoints), self.params.sysid)
+        names = tuple(telemetry.BUILDERS)
+        self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
+                           for link in self.links]
+
+    def close(self) -> None:
+        for link in self.links:
+            link.close()
+
+    def run(self) -> None:
+        """Run until `request_stop()` (blocking; e.g. from a signal handler), opening the links if not yet open."""
+        if not self.links:
+            self.open()
+        try:
+            self._loop()
+        finally:
+            self.close()
+
+    def start(self) -> None:
+        """Open the links and run in a background thread."""
+        self.open()
+        self._thread = threading.Thread(target=self._loop, name="sim-bridge", daemon=True)
+        self._thread.start()
+
+    def request_stop(self) -> None:
+        self._stop.set()
+
+    def stop(self) -> None:
+        """Stop the background thread and close the links."""
+        self.request_stop()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        self.close()
+
+    # -- state -----------------------------------------------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        """Simulated time since boot, s."""
+        return self.steps * self.physics.h
+
+    def truth(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """(t, eta, nu) of the simulated vehicle, without sensor noise (copies; safe from any thread)."""
+        with self._lock:
+            plant = self.physics.plant
+            return self.t, np.array(plant.eta, dtype=float), np.array(plant.nu, dtype=float)
+
+    def snapshot(self) -> telemetry.Snapshot:
+        """What the telemetry reports now (measured state, with the environment's sensor noise)."""
+        eta, nu = self.physics.plant.measured()
+        battery = self.physics.battery
+        return telemetry.Snapshot(
+            t=self.t, eta=np.asarray(eta), nu=np.asarray(nu), servo=self.servo, rc_in=self.sub.rc.radio_in.copy(),
+            base_mode=self.sub.base_mode(), custom_mode=self.sub.mode, system_status=self.sub.system_status(),
+            throttle=float(self.sub.pilot_axes()[3]) if self.sub.armed else 0.0,
+            voltage=battery.voltage, current=battery.current, consumed_ah=battery.consumed_ah,
+            remaining=battery.remaining, origin=self.config.origin, water_density=self.vehicle.water_density,
+            gravity=self.vehicle.gravity, unix_start=self.unix_start, firmware=self.params.firmware)
+
+    def _params_changed(self, t: float) -> None:
+        for scheduler in self.schedulers:
+            scheduler.refresh(t)
+
+    # -- loop ------------------------------------------------------------------------------------------------
+
+    def _loop(self) -> None:
+        self.pacer = Pacer(self.physics.h, self.params["SIM_SPEEDUP"])
+        while not self._stop.is_set():
+            self._receive()
+            speedup = self.params["SIM_SPEEDUP"]
+            if speedup > 0:
+                self.pacer.set_speedup(speedup, self.t)
+            while self.pacer.due(self.t):
+                self._step()
+            sockets = [s for link in self.links for s in link.sockets()]
+            select.select(sockets, [], [], min(self.pacer.wait(self.t), MAX_IDLE))
+
+    def _step(self) -> None:
+        self.sub.update(self.t)
+        self.servo = self.sub.servo_outputs()
+        with self._lock:
+            self.physics.step(self.servo[:8])
+            self.steps += 1
+        t = self.t
+        while self.sub.texts:
+            severity, text = self.sub.texts.pop(0)
+            self._broadcast(telemetry.ENCODER.statustext_encode(severity, text.encode()[:50]))
+        snap = None
+        for link, scheduler in zip(self.links, self.schedulers):
+            for name in scheduler.due(t):
+                snap = snap or self.snapshot()
+                link.send(telemetry.BUILDERS[name](snap))
+
+    def _receive(self) -> None:
+        t = self.t
+        for link, scheduler in zip(self.links, self.schedulers):
+            for msg in link.receive():
+                for reply, to_all in self.protocol.handle(msg, link.channel, scheduler, t):
+                    if to_all:
+                        self._broadcast(reply)
+                    else:
+                        link.send(reply)
+
+    def _broadcast(self, msg) -> None:
+        for link in self.links:
+            link.send(msg)

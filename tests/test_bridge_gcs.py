@@ -1,0 +1,173 @@
+"""Test support for the bridge tests: free ports, the bridge as a subprocess, and a pymavlink ground station.
+
+(A module of helpers, named test_bridge_* so it sits with the bridge's tests; it holds no tests itself.)
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink import mavutil  # noqa: E402
+
+mavutil.set_dialect("ardupilotmega")   # MAVLink 2 even if another test imported pymavlink first
+
+ROV_MAV = str(Path(sys.executable).with_name("rov-mav"))
+WAIT = 20.0            # s of wall time allowed for anything that should take a fraction of it
+
+
+def free_port(kind: int = socket.SOCK_DGRAM) -> int:
+    """A port on 127.0.0.1 that nothing is bound to right now (UDP by default)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class BridgeProcess:
+    """`rov-mav sim-bridge` in a subprocess; its output goes to files in `workdir`. Stops with SIGTERM on exit."""
+
+    def __init__(self, workdir: Path, *args: str, speedup: float = 10.0):
+        self.port = free_port()
+        self.args = [ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{self.port}", "--speedup", str(speedup),
+                     *args]
+        self.speedup = speedup
+        self.out_path = workdir / f"bridge-{self.port}.out"
+        self.err_path = workdir / f"bridge-{self.port}.err"
+        self.proc: subprocess.Popen | None = None
+
+    def __enter__(self) -> "BridgeProcess":
+        with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
+            self.proc = subprocess.Popen(self.args, stdout=out, stderr=err, stdin=subprocess.DEVNULL)
+        return self
+
+    def stop(self) -> int:
+        """SIGTERM, then wait (kill after WAIT s); the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            return self.proc.wait(WAIT)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            raise
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def output(self) -> str:
+        return self.out_path.read_text() + self.err_path.read_text()
+
+
+class Gcs:
+    """A pymavlink ground station on a bridge's udpin port, with an optional background heartbeat/override pump.
+
+    `rate` is in simulated Hz: the pump sends `rate * speedup` times per wall second, as a GCS flying a sped-up
+    vehicle must."""
+
+    def __init__(self, port: int, speedup: float = 1.0, sysid: int = 255, rate: float = 2.0):
+        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
+                                               source_component=190)
+        self.speedup = speedup
+        self.rate = rate
+        self.heartbeats = True
+        self.override: list[int] | None = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- sending ---------------------------------------------------------------------------------------------
+
+    def send(self, name: str, *fields) -> None:
+        with self._lock:
+            getattr(self.conn.mav, f"{name}_send")(*fields)
+
+    def heartbeat(self) -> None:
+        self.send("heartbeat", mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+    def rc_override(self, channels: list[int]) -> None:
+        """RC_CHANNELS_OVERRIDE with these channel values (18 fields; missing ones = UINT16_MAX / 0 = ignore)."""
+        values = list(channels) + [65535] * (8 - len(channels)) if len(channels) < 8 else list(channels)
+        values += [0] * (18 - len(values))
+        self.send("rc_channels_override", 1, 1, *values)
+
+    def command(self, command: int, *params: float, timeout: float = WAIT):
+        """COMMAND_LONG and its COMMAND_ACK."""
+        p = list(params) + [0.0] * (7 - len(params))
+        self.send("command_long", 1, 1, command, 0, *p)
+        return self.recv("COMMAND_ACK", timeout, lambda m: m.command == command)
+
+    def set_param(self, name: str, value: float, ptype: int = mavutil.mavlink.MAV_PARAM_TYPE_REAL32):
+        self.send("param_set", 1, 1, name.encode(), value, ptype)
+        return self.recv("PARAM_VALUE", WAIT, lambda m: m.param_id == name)
+
+    def get_param(self, name: str):
+        self.send("param_request_read", 1, 1, name.encode(), -1)
+        return self.recv("PARAM_VALUE", WAIT, lambda m: m.param_id == name)
+
+    def set_interval(self, msg_id: int, hz: float):
+        return self.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz)
+
+    # -- receiving -------------------------------------------------------------------------------------------
+
+    def recv(self, kind: str | list[str] | None, timeout: float = WAIT, cond=lambda m: True):
+        """The next message of `kind` satisfying `cond` within `timeout` wall seconds, else AssertionError."""
+        deadline = time.monotonic() + timeout
+        kinds = [kind] if isinstance(kind, str) else kind
+        while time.monotonic() < deadline:
+            m = self.conn.recv_match(type=kinds, blocking=True, timeout=min(0.2, deadline - time.monotonic()))
+            if m is not None and cond(m):
+                return m
+        raise AssertionError(f"no {kind} within {timeout} s")
+
+    def collect(self, seconds: float, kinds: list[str] | None = None) -> list:
+        """Every message (of `kinds`) received during `seconds` of wall time."""
+        out = []
+        deadline = time.monotonic() + seconds
+        while (left := deadline - time.monotonic()) > 0:
+            m = self.conn.recv_match(type=kinds, blocking=True, timeout=min(0.2, left))
+            if m is not None:
+                out.append(m)
+        return out
+
+    def connect(self, timeout: float = WAIT):
+        """Send heartbeats until the vehicle's HEARTBEAT arrives; returns it."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.heartbeat()
+            m = self.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.3)
+            if m is not None and m.get_srcSystem() == 1:
+                return m
+        raise AssertionError("the bridge never sent a HEARTBEAT")
+
+    def sim_time(self) -> float:
+        """The vehicle's simulated time (s) from its next ATTITUDE."""
+        return self.recv("ATTITUDE").time_boot_ms / 1000.0
+
+    # -- background pump -------------------------------------------------------------------------------------
+
+    def start_pump(self) -> None:
+        """Send heartbeats (if `heartbeats`) and `override` (if set) at `rate` simulated Hz until closed."""
+        self._thread = threading.Thread(target=self._pump, daemon=True)
+        self._thread.start()
+
+    def _pump(self) -> None:
+        period = 1.0 / (self.rate * self.speedup)
+        while not self._stop.wait(period):
+            if self.heartbeats:
+                self.heartbeat()
+            if self.override is not None:
+                self.rc_override(self.override)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(WAIT)
+        self.conn.close()

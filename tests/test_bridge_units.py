@@ -1,0 +1,372 @@
+"""The bridge's pure layers on a simulated clock: parameters, RC input, mixer, ArduSub logic, scheduling, pacing,
+the protocol's answers, battery and thruster physics. No sockets."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from rov_mav.thrusters import allocation_matrix, load_t200
+from sim_bridge import mixer
+from sim_bridge.ardusub import MODES, MAV_RESULT_ACCEPTED, ArduSub
+from sim_bridge.battery import Battery
+from sim_bridge.pacing import Pacer
+from sim_bridge.params import INT8, INT16, REAL32, Params, stored_value
+from sim_bridge.physics import Physics
+from sim_bridge.protocol import Protocol
+from sim_bridge.rc import RCInput
+from sim_bridge.schedule import Scheduler
+
+GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+STEP = 0.0025
+
+
+def run(sub: ArduSub, t0: float, t1: float) -> float:
+    """Main-loop passes from t0 to t1 at 400 Hz; returns t1."""
+    for k in range(int(round((t1 - t0) / STEP))):
+        sub.update(t0 + (k + 1) * STEP)
+    return t1
+
+
+def passthrough(params: Params) -> None:
+    for n in range(1, 9):
+        params.set(f"SERVO{n}_FUNCTION", 50 + n)
+
+
+# -- parameters ------------------------------------------------------------------------------------------------
+
+
+def test_param_names_follow_the_firmware():
+    new, old = Params("4.7"), Params("4.5")
+    assert new["MAV_GCS_SYSID"] == 255 and new["MAV_SYSID"] == 1 and new["MAV1_EXTRA1"] == 10
+    assert "SYSID_MYGCS" not in new and "SR0_EXTRA1" not in new
+    assert old["SYSID_MYGCS"] == 255 and old["SYSID_THISMAV"] == 1 and old["SR0_EXTRA1"] == 10
+    assert "MAV_GCS_SYSID" not in old
+    for p in (new, old):
+        assert [p[f"SERVO{n}_FUNCTION"] for n in range(1, 9)] == list(range(33, 41))
+        assert (p["RC_OVERRIDE_TIME"], p["FS_GCS_ENABLE"], p["FS_GCS_TIMEOUT"]) == (3.0, 2, 5.0)
+        assert (p["FS_PILOT_INPUT"], p["FS_PILOT_TIMEOUT"]) == (2, 3.0)
+        assert len({s.name for s in p.specs}) == len(p)
+    with pytest.raises(ValueError):
+        Params("4.1")
+
+
+def test_param_set_stores_like_ardupilot():
+    assert stored_value(51.4, INT16) == 51 and stored_value(-1.5, INT16) == -1 and stored_value(2.996, INT8) == 3
+    assert stored_value(1000, INT8) == 127 and stored_value(-1e6, INT16) == -32768
+    assert stored_value(0.123, REAL32) == 0.123
+    p = Params()
+    assert p.set("RC_OVERRIDE_TIME", 500.0) == 500.0          # documented range not enforced
+    assert p.set("NO_SUCH_PARAM", 1.0) is None
+    assert p.set("FS_GCS_TIMEOUT", math.nan) is None and p["FS_GCS_TIMEOUT"] == 5.0
+
+
+# -- RC input --------------------------------------------------------------------------------------------------
+
+
+def test_override_field_semantics():
+    rc = RCInput()
+    values = [1600, 65535, 0, 1400] + [65535] * 4 + [1700, 0, 65535, 65534] + [0] * 6
+    rc.set_override(2, 1800, 0.0)
+    rc.set_override(11, 1900, 0.0)
+    rc.apply_message(values, 0.0)
+    rc.update(0.1, 3.0)
+    assert rc.radio_in[0] == 1600 and rc.radio_in[1] == 1500 and rc.radio_in[3] == 1400
+    assert rc.radio_in[8] == 1700 and rc.radio_in[9] == 1100 and rc.radio_in[10] == 1100
+    # channel 3 released (0 on 1-8) and channel 12 released (UINT16_MAX-1 on 9-18): they keep their last value
+    assert rc.radio_in[2] == 1500 and rc.radio_in[11] == 0
+
+
+def test_overrides_expire_and_the_channel_keeps_its_last_value():
+    rc = RCInput()
+    rc.apply_message([1700] * 8 + [0] * 10, 1.0)
+    rc.update(3.9, 3.0)
+    assert np.all(rc.radio_in[:8] == 1700)
+    rc.radio_in[:8] = 1234                      # anything written after expiry is no longer overwritten
+    rc.update(4.1, 3.0)
+    assert np.all(rc.radio_in[:8] == 1234)
+    rc.update(4.1, -1)                          # -1: overrides never expire
+    assert np.all(rc.radio_in[:8] == 1700)
+    fresh = RCInput()
+    fresh.apply_message([1700] * 8 + [0] * 10, 0.0)
+    fresh.update(0.1, 0)                        # 0: overrides disabled
+    assert np.all(fresh.radio_in[:8] == 1500)
+
+
+def test_norm_input_scales_each_side():
+    rc = RCInput()
+    rc.radio_in[0] = 1300
+    assert rc.norm_input(0, 1100, 1500, 1900) == pytest.approx(-0.5)
+    rc.radio_in[0] = 2100
+    assert rc.norm_input(0, 1100, 1500, 1900) == 1.0
+
+
+# -- mixer -----------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("axis, dof, sign", [
+    (0, 3, +1),    # roll right -> +K
+    (1, 4, +1),    # pitch up -> +M
+    (2, 5, +1),    # yaw right -> +N
+    (3, 2, -1),    # throttle up -> -Z (rises)
+    (4, 0, +1),    # forward -> +X
+    (5, 1, +1),    # lateral right -> +Y
+])
+def test_mixer_axes_push_the_vehicle_the_right_way(vehicle, axis, dof, sign):
+    axes = np.zeros(6)
+    axes[axis] = 0.5
+    out = mixer.mix(axes, np.ones(8))
+    thrust = load_t200().thrust(mixer.to_pwm(out, 1100, 1900), 16.0)
+    wrench = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions) @ thrust
+    assert sign * wrench[dof] > 1.0
+    # the T200's weaker reverse leaves a net heave on the roll and pitch patterns
+    others = np.delete(np.abs(wrench), [dof, 2] if dof in (3, 4) else [dof])
+    assert others.max() < 0.2 * abs(wrench[dof]) + 0.5
+
+
+def test_mixer_forward_pattern_normalisation_and_direction():
+    pwm = mixer.to_pwm(mixer.mix([0, 0, 0, 0, 0.25, 0], np.ones(8)), 1100, 1900)
+    assert list(pwm[:4]) == [1400, 1400, 1600, 1600] and np.all(pwm[4:] == 1500)
+    saturated = mixer.mix([0, 0, 1, 0, 1, 1], np.ones(8))       # -3 on motor 2 before scaling
+    assert saturated[1] == pytest.approx(-1.0) and saturated[0] == pytest.approx(1 / 3)
+    reversed_ = mixer.mix([0, 0, 0, 0, 0.25, 0], np.array([-1.0] + [1.0] * 7))
+    assert reversed_[0] == pytest.approx(0.25)
+
+
+# -- ArduSub logic ---------------------------------------------------------------------------------------------
+
+
+def test_boot_state_and_modes():
+    sub = ArduSub(Params())
+    assert (sub.mode, sub.armed, sub.base_mode(), sub.system_status()) == (19, False, 81, 3)
+    assert sub.set_mode(MODES["POSHOLD"]) and sub.base_mode() == 89
+    assert not sub.set_mode(MODES["GUIDED"]) and not sub.set_mode(42) and sub.mode == MODES["POSHOLD"]
+    assert sub.arm(True) == MAV_RESULT_ACCEPTED and sub.base_mode() == 89 + 128 and sub.system_status() == 4
+
+
+def test_passthrough_ignores_arming_and_motor_functions_need_it():
+    params = Params()
+    sub = ArduSub(params)
+    assert sub.rc_override(255, [1650] * 8 + [0] * 10, 0.0)
+    sub.update(0.01)
+    assert np.all(sub.servo_outputs()[:8] == 1500)              # motors: disarmed -> neutral
+    sub.arm(True)
+    assert np.all(sub.servo_outputs()[:8] != 1500)              # mixer of saturated pilot axes
+    sub.arm(False)
+    passthrough(params)
+    assert np.all(sub.servo_outputs()[:8] == 1650)              # passthrough: disarmed, still driven
+    assert np.all(sub.servo_outputs()[8:] == 0)
+
+
+def test_wrong_sysid_override_is_ignored_entirely():
+    params = Params()
+    passthrough(params)
+    sub = ArduSub(params)
+    assert not sub.rc_override(42, [1700] * 8 + [0] * 10, 0.0)
+    sub.update(0.01)
+    assert np.all(sub.servo_outputs()[:8] == 1500)
+    params.set("MAV_GCS_SYSID", 42)
+    assert sub.rc_override(42, [1700] * 8 + [0] * 10, 0.02)
+
+
+def test_pilot_input_failsafe_neutralises_1_to_6_and_keeps_7_8():
+    params = Params()
+    passthrough(params)
+    sub = ArduSub(params)
+    sub.rc_override(255, [1600] * 8 + [0] * 10, 0.0)
+    sub.arm(True)
+    run(sub, 0.0, 2.99)
+    assert sub.armed and not sub.failsafe_pilot
+    run(sub, 2.99, 3.01)
+    assert sub.failsafe_pilot and not sub.armed and sub.system_status() == 5
+    assert (2, "Lost manual control") in sub.texts
+    out = sub.servo_outputs()
+    assert np.all(out[:6] == 1500) and np.all(out[6:8] == 1600)
+    run(sub, 3.01, 20.0)
+    assert np.all(sub.servo_outputs()[6:8] == 1600)             # two thrusters keep running
+    sub.rc_override(255, [1500] * 8 + [0] * 10, 20.0)
+    sub.update(20.01)
+    assert not sub.failsafe_pilot and sub.system_status() == 3
+
+
+def test_pilot_input_failsafe_fires_at_boot_and_only_once():
+    sub = ArduSub(Params())
+    run(sub, 0.0, 3.1)
+    assert sub.failsafe_pilot and sub.texts.count((2, "Lost manual control")) == 1
+    sub.arm(True)
+    run(sub, 3.1, 10.0)
+    assert sub.armed and sub.texts.count((2, "Lost manual control")) == 1
+
+
+@pytest.mark.parametrize("action, armed, mode", [(1, True, 19), (2, False, 19), (3, True, 16), (4, False, 19)])
+def test_gcs_failsafe_actions(action, armed, mode):
+    params = Params()
+    params.set("FS_PILOT_INPUT", 0)
+    params.set("FS_GCS_ENABLE", action)
+    sub = ArduSub(params)
+    sub.arm(True)
+    run(sub, 0.0, 20.0)
+    assert sub.armed and not sub.failsafe_gcs                   # no GCS seen yet: no failsafe
+    sub.gcs_heartbeat(255, 20.0)
+    run(sub, 20.0, 24.9)
+    assert sub.armed
+    run(sub, 24.9, 25.4)                                        # 5 s timeout, checked at 3.3 Hz
+    assert (sub.armed, sub.mode, sub.failsafe_gcs) == (armed, mode, True)
+    assert (4, "MYGCS: 255, heartbeat lost") in sub.texts
+
+
+def test_override_from_the_gcs_counts_as_heartbeat_and_others_do_not():
+    params = Params()
+    params.set("FS_PILOT_INPUT", 0)
+    sub = ArduSub(params)
+    sub.arm(True)
+    sub.gcs_heartbeat(255, 0.0)
+    for k in range(20):
+        sub.gcs_heartbeat(7, k * 1.0)
+        sub.rc_override(255, [1500] * 8 + [0] * 10, k * 1.0)
+        run(sub, k * 1.0, k + 1.0)
+    assert sub.armed
+    run(sub, 20.0, 26.0)
+    assert not sub.armed
+
+
+# -- scheduling and pacing -------------------------------------------------------------------------------------
+
+
+def count_due(scheduler: Scheduler, seconds: float) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for k in range(int(round(seconds / STEP))):
+        for name in scheduler.due(k * STEP):
+            counts[name] = counts.get(name, 0) + 1
+    return counts
+
+
+def test_default_rates_and_message_intervals():
+    params = Params()
+    names = ("HEARTBEAT", "ATTITUDE", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "ATTITUDE_QUATERNION", "VFR_HUD")
+    s = Scheduler(names, lambda g: params.stream_rate(0, g))
+    counts = count_due(s, 10.0)
+    assert counts == {"HEARTBEAT": 10, "ATTITUDE": 100, "LOCAL_POSITION_NED": 30, "SERVO_OUTPUT_RAW": 20,
+                      "VFR_HUD": 100}
+    s.set_interval("ATTITUDE", 1e6 / 50, 0.0)
+    s.set_interval("ATTITUDE_QUATERNION", 1e6 / 100, 0.0)
+    s.set_interval("VFR_HUD", -1, 0.0)
+    params.set("MAV1_POSITION", 8)
+    s.refresh(0.0)
+    counts = count_due(s, 10.0)
+    assert (counts["ATTITUDE"], counts["ATTITUDE_QUATERNION"], counts["LOCAL_POSITION_NED"]) == (500, 1000, 80)
+    assert "VFR_HUD" not in counts
+    s.set_interval("ATTITUDE", 0, 0.0)                          # back to the stream rate
+    assert s.intervals["ATTITUDE"] == pytest.approx(0.1)
+
+
+def test_pacer_measures_lateness_and_reanchors_when_overloaded():
+    now = [100.0]
+    pacer = Pacer(0.01, speedup=10.0, clock=lambda: now[0])
+    assert pacer.due(0.0) and not pacer.due(0.01)
+    assert pacer.wait(0.01) == pytest.approx(0.001)
+    now[0] += 0.0015
+    assert pacer.due(0.01) and pacer.lateness[-1] == pytest.approx(0.0005)
+    now[0] += 5.0                                               # a stall
+    assert pacer.due(0.02) and pacer.slips == 1 and pacer.wait(0.03) == pytest.approx(0.001)
+
+
+# -- protocol --------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def protocol():
+    params = Params()
+    sub = ArduSub(params)
+    scheduler = Scheduler(("HEARTBEAT", "ATTITUDE", "AUTOPILOT_VERSION"), lambda g: params.stream_rate(0, g))
+    changed = []
+    proto = Protocol(sub, params, snapshot=lambda: None, on_params_changed=changed.append)
+    return proto, sub, params, scheduler, changed
+
+
+def decode(msg):
+    """A message as the vehicle's peer would see it (packed by a GCS-side encoder and parsed back)."""
+    return mavlink.MAVLink(None).decode(bytearray(msg.pack(GCS)))
+
+
+def test_protocol_commands_and_acks(protocol):
+    proto, sub, params, scheduler, _ = protocol
+    [(ack, to_all)] = proto.handle(decode(GCS.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)), 0,
+                                   scheduler, 0.0)
+    assert (ack.command, ack.result, ack.target_system, to_all) == (400, 0, 255, False) and sub.armed
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 400, 0, 3, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0)
+    assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED
+    [(ack, _)] = proto.handle(decode(GCS.set_mode_encode(1, 1, 2)), 0, scheduler, 0.0)
+    assert (ack.command, ack.result, sub.mode) == (11, mavlink.MAV_RESULT_ACCEPTED, 2)
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0)), 0, scheduler, 0)
+    assert ack.result == mavlink.MAV_RESULT_FAILED and sub.mode == 2
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, 0, 19, 0, 0, 0, 0, 0)), 0, scheduler, 0)
+    assert ack.result == mavlink.MAV_RESULT_DENIED
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 511, 0, 9999, 1000, 0, 0, 0, 0, 0)), 0,
+                              scheduler, 0)
+    assert ack.result == mavlink.MAV_RESULT_DENIED
+    assert proto.handle(decode(GCS.command_long_encode(2, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0) == []
+    assert sub.armed                                            # addressed to system 2: not for us
+
+
+def test_protocol_parameters(protocol):
+    proto, _, params, scheduler, changed = protocol
+    replies = proto.handle(decode(GCS.param_request_list_encode(1, 1)), 0, scheduler, 0.0)
+    assert [r.param_index for r, _ in replies] == list(range(len(params)))
+    assert {r.param_count for r, _ in replies} == {len(params)}
+    [(value, to_all)] = proto.handle(decode(GCS.param_set_encode(1, 1, b"SERVO1_FUNCTION", 51.2, 4)), 0,
+                                     scheduler, 1.0)
+    assert (value.param_id, value.param_value, value.param_index, to_all) == ("SERVO1_FUNCTION", 51, 65535, True)
+    assert changed == [1.0]
+    assert proto.handle(decode(GCS.param_set_encode(1, 1, b"NOPE", 1, 9)), 0, scheduler, 0.0) == []
+    [(value, _)] = proto.handle(decode(GCS.param_request_read_encode(1, 1, b"", 1)), 0, scheduler, 0.0)
+    assert value.param_id == "MAV_GCS_SYSID"
+    proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 25, 1)), 0, scheduler, 0.0)
+    assert params["MAV1_EXTRA1"] == 25 and params["MAV2_EXTRA1"] == 10
+
+
+def test_ftp_is_refused_so_clients_fall_back(protocol):
+    proto, _, _, scheduler, _ = protocol
+    request = bytes([7, 0, 0, 4, 5, 0, 0, 0, 0, 0, 0, 0]) + b"@PARAM".ljust(239, b"\0")
+    [(reply, _)] = proto.handle(decode(GCS.file_transfer_protocol_encode(0, 1, 1, list(request))), 0, scheduler, 0)
+    payload = bytes(reply.payload)
+    assert (payload[0], payload[3], payload[4], payload[5], payload[12]) == (8, 129, 1, 4, 10)
+
+
+# -- battery and thruster physics ------------------------------------------------------------------------------
+
+
+def test_battery_sags_under_load_and_drains():
+    b = Battery(16.8, 18.0)
+    assert b.voltage == pytest.approx(16.8 - 0.03 * 0.5, abs=1e-3)
+    b.step(100.0, 1.0)
+    assert b.voltage < 16.8 - 3.0
+    b.step(0.0, 3600 * 9.0 / 0.5)
+    assert b.remaining == pytest.approx(0.5, abs=0.02) and b.voltage == pytest.approx(15.0, abs=0.1)
+
+
+class _StillPlant:
+    def __init__(self):
+        self.taus = []
+
+    def step(self, tau, h):
+        self.taus.append(np.array(tau))
+
+
+def test_thrust_lags_the_command_and_maps_to_the_wrench(vehicle):
+    plant = _StillPlant()
+    t200 = load_t200()
+    physics = Physics(vehicle, plant, Battery(), t200, 0.001)
+    pwm = np.array([1500] * 4 + [1700] * 4)
+    for _ in range(20):                                        # one time constant (20 ms)
+        physics.step(pwm)
+    target = t200.thrust(1700, round(physics.battery.voltage, 2))
+    assert physics.thrusts[4] / target == pytest.approx(1 - math.exp(-1), abs=0.02)
+    for _ in range(200):
+        physics.step(pwm)
+    assert plant.taus[-1][2] == pytest.approx(4 * physics.thrusts[4]) and np.allclose(plant.taus[-1][[0, 1, 5]], 0)
+    physics.step(np.zeros(8, dtype=int))                       # no pulse: the ESCs stop, not full reverse
+    assert np.all(physics.thrusts >= 0)
