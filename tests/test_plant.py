@@ -29,4 +29,4 @@ def test_measured_noise_has_the_configured_spread(vehicle):
     samples = np.array([np.concatenate(plant.measured()) for _ in range(4000)])
     expected = np.repeat([0.02, 0.01, 0.05, 0.003], 3)
     np.testing.assert_allclose(samples.std(axis=0), expected, rtol=0.08)
-    np.testing.assert_allclose(samples.mean(axis=0), 0.0, atol=4 * expected / np.sqrt(4000))
+    assert (np.abs(samples.mean(axis=0)) < 4 * expected / np.sqrt(4000)).all()
