@@ -50,7 +50,7 @@ class ControllerSettings:
 
     def kernel_arguments(self) -> tuple:
         """(schedule, constant_gamma, table, table_xmax, d_max) as the kernel takes them."""
-        return (SCHEDULES[self.kind], self.constant_gamma, self.fuzzy.table(), self.fuzzy.table_xmax, self.d_max)
+        return (SCHEDULES[self.kind], self.constant_gamma, self.fuzzy.table, self.fuzzy.table_xmax, self.d_max)
 
 
 def default_controller_path() -> Path:

@@ -8,6 +8,7 @@ from a table sampled here once (`FuzzySchedule.table`), with linear interpolatio
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
@@ -99,10 +100,18 @@ class FuzzySchedule:
         """Raw |grad_i| at which each table ends (the largest rule centre over the input gain), (6,)."""
         return np.array([s.input_centres.max() for s in self.systems]) / self.input_gains
 
+    @cached_property
     def table(self) -> np.ndarray:
-        """gamma sampled at table_points uniform raw inputs in [0, table_xmax_i], (6, table_points)."""
+        """gamma sampled at table_points uniform raw inputs in [0, table_xmax_i], (6, table_points).
+
+        Built once per schedule; DOFs sharing a system and an input gain share the computation."""
         u = np.linspace(0.0, 1.0, self.table_points)
-        return np.stack([self.systems[i].evaluate(self.input_gains[i] * u * self.table_xmax[i]) for i in range(6)])
+        rows: dict[tuple[int, float], np.ndarray] = {}
+        for i in range(6):
+            key = (id(self.systems[i]), float(self.input_gains[i]))
+            if key not in rows:
+                rows[key] = self.systems[i].evaluate(self.input_gains[i] * u * self.table_xmax[i])
+        return np.stack([rows[(id(self.systems[i]), float(self.input_gains[i]))] for i in range(6)])
 
 
 def default_rules_path() -> Path:

@@ -66,7 +66,7 @@ def test_rates_are_monotone_and_bounded_by_the_consequents():
 
 def test_table_interpolation_tracks_the_exact_system():
     fuzzy = load_fuzzy()
-    table, xmax = fuzzy.table(), fuzzy.table_xmax
+    table, xmax = fuzzy.table, fuzzy.table_xmax
     rng = np.random.default_rng(3)
     raw = rng.uniform(0, 1.3, (500, 6)) * xmax
     exact = fuzzy.rates(raw)
