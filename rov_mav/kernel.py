@@ -46,12 +46,21 @@ MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular
 MAX_SPEED = 20.0        # m/s or rad/s, any component of nu
 DIVERGED_COST = 1.0e12
 
+
+def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """simulate_batch's (cost_weights, tau_ff, tau_max) for Eq. 2.32 as printed: Q = R = I, no saturation limit."""
+    return np.array([np.ones(6), np.zeros(6), np.ones(6)]), np.zeros((ref.shape[0], 6)), np.full(6, np.inf)
+
+
 # Floating-point licences for the compiled code: fused multiply-add and reassociation, but NaN and inf keep their
 # meaning (the divergence check relies on them).
 FAST = {"contract", "reassoc", "arcp", "nsz", "afn"}
 
+# Every kernel function: cached to disk, numpy's error model (no Python-style division checks in the hot loop).
+compiled = njit(cache=True, fastmath=FAST, error_model="numpy")
 
-@njit(cache=True, fastmath=FAST)
+
+@compiled
 def rotation(cphi, sphi, cth, sth, cpsi, spsi):
     """R(Theta), ZYX body-to-NED rotation (ERRATA 1, Fossen 2021 eq. 2.18), row-major 9-tuple."""
     return (cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth,
@@ -59,13 +68,13 @@ def rotation(cphi, sphi, cth, sth, cpsi, spsi):
             -sth, cth * sphi, cth * cphi)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def euler_rates(cphi, sphi, cth, sth, p, q, r):
     """T(Theta) [p, q, r]: Euler-angle rates from body rates (Eq. 2.4), 3-tuple."""
     return (p + (sphi * q + cphi * r) * sth / cth, cphi * q - sphi * r, (sphi * q + cphi * r) / cth)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r):
     """A = J_dot(eta, eta_dot) nu (Eq. 2.15), 6-tuple.
 
@@ -83,13 +92,13 @@ def jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r):
             dphi * (cphi * q - sphi * r) / cth + dth * sth * sec2 * (sphi * q + cphi * r))
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def _mass_row(m, row, u, v, w, p, q, r):
     b = P_M + 6 * row
     return m[b] * u + m[b + 1] * v + m[b + 2] * w + m[b + 3] * p + m[b + 4] * q + m[b + 5] * r
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def coriolis_times_nu(m, u, v, w, p, q, r):
     """C(nu) nu with C built from M by Fossen's m2c (ERRATA 5), 6-tuple.
 
@@ -106,7 +115,7 @@ def coriolis_times_nu(m, u, v, w, p, q, r):
             -(a0 * v - a1 * u) - (b0 * q - b1 * p))
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def damping_times_nu(m, u, v, w, p, q, r):
     """D(nu) nu = (D_l + D_nl(|nu|)) nu (Appendix I.3, positive magnitudes), 6-tuple."""
     lin, quad = P_DLIN, P_DQUAD
@@ -115,7 +124,7 @@ def damping_times_nu(m, u, v, w, p, q, r):
             (m[lin + 4] + m[quad + 4] * abs(q)) * q, (m[lin + 5] + m[quad + 5] * abs(r)) * r)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def restoring(m, cphi, sphi, cth, sth):
     """g(eta), gravity and buoyancy (Appendix I.4), 6-tuple."""
     W, B = m[P_W], m[P_B]
@@ -126,7 +135,7 @@ def restoring(m, cphi, sphi, cth, sth):
             -gy * cth * cphi + gz * cth * sphi, gz * sth + gx * cth * cphi, -gx * cth * sphi - gy * sth)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def state_derivative(m, x, tau, current_ned, dx):
     """d/dt [eta; nu] for the plant (Eqs. 2.1, 2.7): M nu_dot = tau - C(nu) nu - D(nu_r) nu_r - g(eta).
 
@@ -159,7 +168,7 @@ def state_derivative(m, x, tau, current_ned, dx):
         dx[6 + i] = m[b] * f0 + m[b + 1] * f1 + m[b + 2] * f2 + m[b + 3] * f3 + m[b + 4] * f4 + m[b + 5] * f5
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def disturbance(env, t, tau, out):
     """out = tau + tau_d(t), tau_d a constant plus a sinusoid per DOF (body frame, N and N m)."""
     period = env[E_PERIOD]
@@ -168,7 +177,7 @@ def disturbance(env, t, tau, out):
         out[i] = tau[i] + env[E_DIST + i] + env[E_AMP + i] * phase
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def rk4_step(m, env, x, tau, t, h, ws):
     """Advance the plant state x (12,) in place by h seconds with the control wrench tau held (classic RK4).
 
@@ -197,13 +206,13 @@ def rk4_step(m, env, x, tau, t, h, ws):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def wrap_angle(a):
     """Wrap an angle to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
     """The corrected backstepping law (ERRATA 2, Eq. 2.17) and the adaptation direction (ERRATA 3, Eq. 2.22).
 
@@ -254,7 +263,7 @@ def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
                    + m[b + 30] * j5)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
     """Gamma per body DOF: constant, or the tabulated Mamdani FIS of |grad_i| (Eq. 2.29); writes gamma (6,)."""
     n = table.shape[1]
@@ -270,7 +279,7 @@ def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
             gamma[i] = 0.0
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
     """One explicit step of d(tau_hat)/dt = Gamma (J M^-1)^T s (ERRATA 3), projected onto |tau_hat_i| <= d_max_i
     (Assumption 2). Baseline (no schedule) keeps tau_hat = 0."""
@@ -282,7 +291,7 @@ def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
             tau_hat[i] = min(max(value, -d_max[i]), d_max[i])
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def controller_step(m, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta, nu, ref, dt,
                     tau_hat, tau, s, grad, gamma):
     """One control tick: tau from the law with the current estimate, then the estimate advanced by dt.
@@ -293,7 +302,7 @@ def controller_step(m, k1, k2, schedule, gamma_const, table, table_xmax, d_max, 
     adapt(schedule, grad, gamma, d_max, dt, tau_hat)
 
 
-@njit(cache=True, fastmath=FAST)
+@compiled
 def _diverged(x):
     for i in range(12):
         if not math.isfinite(x[i]):
@@ -306,16 +315,41 @@ def _diverged(x):
     return False
 
 
-@njit(cache=True, fastmath=FAST, nogil=True)
+@compiled
+def _saturated(tau, tau_max):
+    for i in range(6):
+        if abs(tau[i]) > tau_max[i]:
+            return True
+    return False
+
+
+@compiled
+def _running_cost(weights, s, x, ref, tau, tau_ff):
+    """s^T Q s + e^T Q_e e + (tau - tau_ff)^T R (tau - tau_ff) at one tick (Eq. 2.32 and its tracking form)."""
+    total = 0.0
+    for i in range(6):
+        u = tau[i] - tau_ff[i]
+        total += weights[0, i] * s[i] * s[i] + weights[2, i] * u * u
+        if weights[1, i] != 0.0:
+            e = x[i] - ref[i]
+            if i >= 3:
+                e = wrap_angle(e)
+            total += weights[1, i] * e * e
+    return total
+
+
+@njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
 def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_xmax, d_max, ref, dt,
-                   substeps, x0, seeds, cost_q, cost_r, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log,
-                   cost, steps_done):
+                   substeps, x0, seeds, cost_weights, tau_ff, tau_max, eta_log, nu_log, tau_log, tau_hat_log, s_log,
+                   gamma_log, cost, steps_done):
     """Closed-loop runs of a batch of vehicles: law + adaptation at 1/dt, plant by RK4 at dt/substeps.
 
     plant (B, 92), env (B, 20): each run's true vehicle and environment; ctrl (92,): the controller's model;
     gains (B, 12) = [k1 | k2]; ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
-    cost (B,) receives J = sum (s^T Q s + tau^T R tau) dt with Q = diag(cost_q), R = diag(cost_r) (Eq. 2.32);
-    a diverging run stops early with DIVERGED_COST. steps_done (B,) receives the ticks completed.
+    cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
+    e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
+    Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
+    |tau_i| exceeds tau_max (6,) (thruster saturation). steps_done (B,) receives the ticks completed.
     The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     n_runs = gains.shape[0]
@@ -356,8 +390,11 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
                     gamma_log[b, k, i] = gamma[i]
             if k == n_steps:
                 break
-            for i in range(6):
-                total += (cost_q[i] * s[i] * s[i] + cost_r[i] * tau[i] * tau[i]) * dt
+            if _saturated(tau, tau_max):
+                done = k
+                total = DIVERGED_COST
+                break
+            total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
             for j in range(substeps):
                 rk4_step(plant[b], env[b], x, tau, k * dt + j * h, h, ws_plant)
             if _diverged(x):
