@@ -46,7 +46,7 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     x0 = np.concatenate([mission.start_pose, np.zeros(6)])
     kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.gains[None],
                           *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
-                          np.ones(6), np.ones(6), *logs, cost, steps)
+                          *kernel.printed_cost(ref), *logs, cost, steps)
     done = int(steps[0])
     eta, nu, tau, tau_hat, s, gamma = (log[0, :done + 1] for log in logs)
     return Trace(t=np.arange(done + 1) * dt, eta=eta, nu=nu, reference=ref[:done + 1], tau=tau, tau_hat=tau_hat,

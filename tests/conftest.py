@@ -13,6 +13,13 @@ ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "missions"
 
 
+@pytest.fixture(autouse=True)
+def _no_viewer_windows(monkeypatch):
+    """Runs started by tests record Rerun telemetry to a file instead of opening a viewer window."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+
+
 @pytest.fixture(scope="session")
 def vehicle():
     return load_vehicle()

@@ -72,7 +72,7 @@ def test_batch_runs_equal_single_runs(vehicle, line):
         cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
         kernel.simulate_batch(np.tile(vehicle.packed(), (n, 1)), np.tile(line.environment.packed(), (n, 1)),
                               vehicle.packed(), g, *settings.kernel_arguments(), ref, 0.01, 1, x0,
-                              np.zeros(n, dtype=np.int64), np.ones(6), np.ones(6),
+                              np.zeros(n, dtype=np.int64), *kernel.printed_cost(ref),
                               *[e[:n] for e in empty], cost, steps)
         return cost
 

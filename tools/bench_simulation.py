@@ -36,7 +36,7 @@ def batch_runner(n: int, duration: float = 60.0, dt: float = 0.01):
 
     def run():
         kernel.simulate_batch(plant, env, vehicle.packed(), gains, *args, ref, dt, 1, x0,
-                              np.zeros(n, dtype=np.int64), np.ones(6), np.ones(6),
+                              np.zeros(n, dtype=np.int64), *kernel.printed_cost(ref),
                               empty, empty, empty, empty, empty, empty, cost, steps)
         return cost
 

@@ -3,8 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
+import numpy as np
+import rerun as rr
+
+from rov_mav import telemetry
 from rov_mav.controller import SCHEDULES, ControllerSettings, load_settings
+from rov_mav.mission import Mission
+from rov_mav.vehicle import Vehicle
 
 
 def six_floats(text: str) -> list[float]:
@@ -35,3 +43,39 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
 
 def controller_settings(args: argparse.Namespace) -> ControllerSettings:
     return load_settings(args.controller, args.gains, args.fuzzy_rules, args.k1, args.k2)
+
+
+def _rerun_target(text: str) -> telemetry.RerunTarget:
+    try:
+        return telemetry.parse_target(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_rerun_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--rerun", type=_rerun_target, metavar="spawn|connect[:URL]|save:FILE.rrd|off",
+                        help="live telemetry in the Rerun viewer: spawn a viewer (the default with a display), "
+                             f"connect to a running one (default {telemetry.target.DEFAULT_URL}, e.g. "
+                             "`rerun --serve-grpc`), save a recording (the default without a display), or off")
+
+
+def rerun_recording(args: argparse.Namespace, default_file: str | Path, reference_path: np.ndarray | None = None
+                    ) -> tuple[telemetry.RerunTarget, rr.RecordingStream | None]:
+    """The --rerun target (default: spawn with a display, else save to `default_file`) and its open recording,
+    whose default layout frames `reference_path` (M, 3). Without a viewer to stream to, it saves instead."""
+    target = args.rerun or telemetry.default_target(default_file)
+    blueprint = telemetry.default_blueprint(reference_path)
+    try:
+        return target, telemetry.open_recording(target, blueprint)
+    except telemetry.ViewerUnavailable as exc:
+        print(f"rov-mav: {exc}; saving the telemetry to {default_file} instead", file=sys.stderr)
+        target = telemetry.RerunTarget("save", str(default_file))
+        return target, telemetry.open_recording(target, blueprint)
+
+
+def rerun_sink(args: argparse.Namespace, vehicle: Vehicle, mission: Mission, default_file: str | Path
+               ) -> tuple[telemetry.RerunTarget, telemetry.RerunSink | None]:
+    """The --rerun target and a runner sink streaming to it (None when off); print `target.describe()` after."""
+    path = mission.sampled_reference(0.1)[:, :3]
+    target, rec = rerun_recording(args, default_file, path)
+    return target, None if rec is None else telemetry.RerunSink(rec, vehicle, path)

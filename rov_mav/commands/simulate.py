@@ -6,7 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
-from rov_mav.commands.common import add_controller_options, controller_settings
+from rov_mav import telemetry
+from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_recording
 from rov_mav.metrics import run_metrics
 from rov_mav.mission import load_mission
 from rov_mav.plots import plot_run
@@ -29,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--out", metavar="DIR", help="folder for the figures (default: out/simulate-MISSION-CONTROLLER)")
     p.add_argument("--metrics", metavar="FILE", help="write the metrics JSON here (default: DIR/metrics.json)")
+    add_rerun_option(p)
     p.set_defaults(func=main)
 
 
@@ -47,6 +49,11 @@ def main(args: argparse.Namespace) -> int:
     metrics_path = Path(args.metrics) if args.metrics else out_dir / "metrics.json"
     metrics_path.parent.mkdir(parents=True, exist_ok=True)
     metrics_path.write_text(json.dumps(metrics, indent=2) + "\n")
+    rerun_target, recording = rerun_recording(args, out_dir / "run.rrd", trace.reference[:, :3])
+    delivered = True
+    if recording is not None:
+        telemetry.log_trace(recording, trace, model, telemetry.mission_events(mission, trace))
+        delivered = telemetry.finish(recording)
     status = "completed" if trace.completed else f"DIVERGED at t = {trace.t[-1]:.2f} s"
     print(f"{mission.name} / {settings.kind}: {status}, {metrics['duration_s']:.1f} s simulated")
     print(f"  position error RMS {metrics['rms_position_error_m'] * 100:.2f} cm "
@@ -56,4 +63,5 @@ def main(args: argparse.Namespace) -> int:
     print(f"  final disturbance estimate {[round(v, 3) for v in metrics['final_disturbance_estimate']]}")
     print(f"  metrics: {metrics_path}")
     print(f"  figures: {', '.join(str(f) for f in figures)}")
+    print(f"  rerun: {rerun_target.describe(delivered)}")
     return 0 if trace.completed else 1

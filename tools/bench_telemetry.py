@@ -1,0 +1,111 @@
+"""Benchmark: what Rerun logging costs the control loop, side by side with the 20 ms period of a 50 Hz loop.
+
+1. Rerun's own cost per tick for batches of 1..50 ticks (`send_ticks` into a file), the work the sink's thread does.
+2. A 50 Hz loop paced like the runner's (sleep to the next 20 ms deadline, allocate tau to thrusts and PWMs, hand
+   the record to the sinks), without and with the live sink: time inside `log_tick`, the sink thread's CPU time per
+   tick, and how late the loop wakes up (does the logging thread delay it?).
+Run:
+    .venv/bin/python tools/bench_telemetry.py [--seconds 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rov_mav import telemetry
+from rov_mav.controller import load_settings
+from rov_mav.mission import load_mission
+from rov_mav.simulation import simulate
+from rov_mav.telemetry.entities import TickColumns, log_static, send_ticks
+from rov_mav.thrusters import Allocator, thrusts_to_pwms
+from rov_mav.tick import TickRecord
+from rov_mav.vehicle import load_vehicle
+
+ROOT = Path(__file__).resolve().parents[1]
+PERIOD = 0.02   # s: 50 Hz
+
+
+def records(n: int) -> list[TickRecord]:
+    """n ticks of the square at 50 Hz, as the runner builds them."""
+    mission, vehicle = load_mission(ROOT / "missions" / "square.yaml"), load_vehicle()
+    trace = simulate(mission, load_settings("fuzzy"), vehicle, duration=n * PERIOD, dt=PERIOD)
+    c = telemetry.trace_columns(trace, vehicle)
+    return [TickRecord(t=c.t[k], eta=c.eta[k], nu=trace.nu[k], reference=c.reference[k], tau=c.tau[k],
+                       tau_hat=c.tau_hat[k], s=c.s[k], gamma=c.gamma[k], thrusts=c.thrusts[k], pwm=c.pwm[k],
+                       progress=mission.progress(c.t[k]), telemetry_age=0.005, control_rate=50.0,
+                       battery_voltage=16.0, true_disturbance=trace.true_disturbance) for k in range(n)]
+
+
+def batch_costs(ticks: list[TickRecord], folder: Path) -> None:
+    vehicle = load_vehicle()
+    print("| ticks per batch | Rerun CPU per tick | share of 20 ms |\n|---|---|---|")
+    for size in (1, 5, 10, 25, 50):
+        rec = telemetry.open_recording(telemetry.RerunTarget("save", str(folder / f"batch{size}.rrd")),
+                                       telemetry.default_blueprint())
+        log_static(rec, vehicle, None)
+        batches = [TickColumns.from_records(ticks[i:i + size]) for i in range(0, len(ticks) - size + 1, size)]
+        start = time.thread_time()
+        for batch in batches:
+            send_ticks(rec, batch, vehicle)
+        cost = (time.thread_time() - start) / (len(batches) * size)
+        telemetry.finish(rec)
+        print(f"| {size} | {cost * 1e3:.3f} ms | {100 * cost / PERIOD:.2f} % |")
+
+
+def paced_loop(ticks: list[TickRecord], sink) -> tuple[np.ndarray, np.ndarray]:
+    """Run the ticks at 50 Hz; returns how late each wake-up was and how long each log_tick took (s)."""
+    allocator = Allocator.for_vehicle(load_vehicle(), 16.0)
+    late, calls = np.zeros(len(ticks)), np.zeros(len(ticks))
+    deadline = time.perf_counter()
+    for k, record in enumerate(ticks):
+        deadline += PERIOD
+        time.sleep(max(deadline - time.perf_counter(), 0.0))
+        late[k] = time.perf_counter() - deadline
+        thrusts, _ = allocator.thrusts(record.tau)     # the runner's own work per tick
+        thrusts_to_pwms(thrusts, record.battery_voltage)
+        if sink is not None:
+            start = time.perf_counter()
+            sink.log_tick(record)
+            calls[k] = time.perf_counter() - start
+    return late, calls
+
+
+def loop_costs(ticks: list[TickRecord], folder: Path) -> None:
+    vehicle = load_vehicle()
+    print("\n| 50 Hz loop | in log_tick (mean / max) | sink thread CPU per tick | total per tick | share of 20 ms "
+          "| wake-up late p50 / p99 / max | dropped |\n|---|---|---|---|---|---|---|")
+    late, _ = paced_loop(ticks, None)
+    print(f"| no sink | - | - | - | - | {_late(late)} | - |")
+    rec = telemetry.open_recording(telemetry.RerunTarget("save", str(folder / "live.rrd")),
+                                   telemetry.default_blueprint())
+    sink = telemetry.RerunSink(rec, vehicle)
+    late, calls = paced_loop(ticks, sink)
+    sink.close()
+    s = sink.stats
+    total = s.call_per_tick + s.work_per_tick
+    print(f"| Rerun sink | {s.call_per_tick * 1e6:.1f} / {max(calls) * 1e6:.0f} us | {s.work_per_tick * 1e3:.3f} ms "
+          f"| {total * 1e3:.3f} ms | {100 * total / PERIOD:.2f} % | {_late(late)} | {s.dropped} |")
+
+
+def _late(late: np.ndarray) -> str:
+    p50, p99 = np.percentile(late, [50, 99]) * 1e3
+    return f"{p50:.2f} / {p99:.2f} / {late.max() * 1e3:.2f} ms"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=10.0, help="length of each 50 Hz run (default 10)")
+    args = parser.parse_args()
+    ticks = records(int(args.seconds / PERIOD))
+    with tempfile.TemporaryDirectory() as tmp:
+        batch_costs(ticks, Path(tmp))
+        loop_costs(ticks, Path(tmp))
+
+
+if __name__ == "__main__":
+    main()
