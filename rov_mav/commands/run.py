@@ -1,0 +1,196 @@
+"""`rov-mav run`: fly a mission on a vehicle over MAVLink (ArduSub, SITL, or the built-in bridge), safely."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+import sys
+from pathlib import Path
+
+from rov_mav.actuation import Actuation
+from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_sink
+from rov_mav.controller import Controller
+from rov_mav.link import LinkError, Session
+from rov_mav.metrics import run_metrics
+from rov_mav.mission import load_mission
+from rov_mav.runlog import RunLog
+from rov_mav.runner import Limits, RunOptions, Runner
+from rov_mav.status import StatusLine
+from rov_mav.vehicle import load_vehicle
+
+DESCRIPTION = """\
+Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
+ArduSub (a real one, ArduSub SITL, or `rov-mav sim-bridge`). Without --target, the built-in simulated vehicle
+starts in this process (at the mission's start depth, in the mission's environment) and the mission is flown there.
+
+How it drives the thrusters (--output thrusters): SERVO1..8_FUNCTION are saved and switched to RCIN1..8 passthrough
+(each confirmed), and 8 PWMs go out with RC_CHANNELS_OVERRIDE at --rate Hz of vehicle time, neutral (1500) first and
+last. Passthrough outputs are NOT gated by arming and KEEP their last PWM when the overrides stop, so on every exit
+(mission complete, Ctrl-C, SIGTERM, an error, a lost link, a failed arm, a limit crossed) the runner sends neutral on
+all 8 channels, releases the overrides, disarms and restores SERVO1..8_FUNCTION, and prints what it did. If the link
+is gone it says so: the thrusters then hold their last command on the vehicle.
+
+Before arming it checks that the vehicle is ArduSub on a submarine, not armed by someone else, that nobody else is
+overriding its RC input (both unless --force), and that ATTITUDE and LOCAL_POSITION_NED arrive at the control rate.
+Safety while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout
+-> abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster.
+"""
+
+EPILOG = """\
+examples:
+  rov-mav run missions/square.yaml                              # the built-in simulated vehicle, real time
+  rov-mav run missions/square.yaml --speedup 10                 # the same, 10x faster than real time
+  rov-mav sim-bridge &  rov-mav run --target udp:127.0.0.1:14550 missions/square.yaml
+  rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
+  rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
+
+exit status: 0 mission complete; 1 aborted (the reason is printed); 2 bad arguments or files;
+128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
+"""
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text}: expected a positive number")
+    return value
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("run", help="fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)",
+                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("mission", help="mission YAML (e.g. missions/square.yaml)")
+    p.add_argument("--target", metavar="CONN",
+                   help="pymavlink connection: udp:HOST:PORT (listen; a vehicle sends to 14550), udpout:HOST:PORT, "
+                        "tcp:HOST:PORT (ArduSub SITL: tcp:127.0.0.1:5760), or a serial device (see --baud); "
+                        "default: start the built-in simulated vehicle in this process")
+    add_controller_options(p)
+    p.add_argument("--rate", type=_positive, default=50.0, metavar="HZ",
+                   help="control rate in Hz of vehicle time: telemetry asked for and overrides sent (default 50)")
+    p.add_argument("--output", choices=["thrusters"], default="thrusters",
+                   help="how commands reach the vehicle: per-thruster PWMs through RCIN passthrough (default)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="connect and compute everything (logged), but change no parameter, arm nothing and send no "
+                        "override; limit crossings are reported, not acted on")
+    p.add_argument("--force", action="store_true",
+                   help="take over a vehicle that is already armed or whose RC input someone else is driving")
+    p.add_argument("--metrics", metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
+    p.add_argument("--log", metavar="DIR",
+                   help="write ticks.csv (state, reference, commands, controller internals), events.csv and the "
+                        "raw MAVLink traffic (mavlink.tlog) to DIR")
+    limits = p.add_argument_group("limits (default: the mission's `limits:` block)")
+    limits.add_argument("--max-depth", type=_positive, metavar="M", help="abort below this depth")
+    limits.add_argument("--max-tracking-error", type=_positive, metavar="M",
+                        help="abort when the position error exceeds this")
+    limits.add_argument("--max-thrust", type=_positive, metavar="N",
+                        help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
+    link = p.add_argument_group("link")
+    link.add_argument("--sysid", type=int, metavar="ID",
+                      help="our MAVLink system id (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255)")
+    link.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
+    link.add_argument("--heartbeat-timeout", type=_positive, default=15.0, metavar="S",
+                      help="wall seconds to wait for the vehicle's heartbeat (default 15)")
+    link.add_argument("--position-timeout", type=_positive, default=90.0, metavar="S",
+                      help="wall seconds to wait for LOCAL_POSITION_NED (default 90)")
+    link.add_argument("--link-timeout", type=_positive, default=2.0, metavar="S",
+                      help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
+    p.add_argument("--approach-speed", type=_positive, default=0.2, metavar="M/S",
+                   help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
+    p.add_argument("--speedup", type=_positive, default=1.0, metavar="N",
+                   help="built-in vehicle only: run it N times faster than real time (default 1)")
+    add_rerun_option(p)
+    p.set_defaults(func=main)
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _start_bridge(mission, speedup: float):
+    """The built-in vehicle in a background thread; returns (bridge, connection string for it)."""
+    from sim_bridge.config import BridgeConfig
+    from sim_bridge.link import LinkError as BridgeLinkError
+    from sim_bridge.server import Bridge
+
+    port = _free_udp_port()
+    bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
+                                 environment=mission.environment, start_depth=float(mission.start_pose[2])))
+    try:
+        bridge.start()
+    except BridgeLinkError as exc:
+        raise LinkError(f"the built-in vehicle could not start: {exc}") from None
+    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {bridge.params.firmware}) on udp port {port}, "
+          f"speedup {speedup:g}", flush=True)
+    return bridge, f"udpout:127.0.0.1:{port}"
+
+
+def main(args: argparse.Namespace) -> int:
+    mission = load_mission(args.mission)
+    settings = controller_settings(args)
+    model = load_vehicle(args.vehicle)
+    if args.target is not None and args.speedup != 1.0:
+        print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
+        return 2
+    lim = mission.limits
+    limits = Limits(max_depth=args.max_depth or lim.max_depth,
+                    max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
+                    max_thrust=args.max_thrust or lim.max_thrust)
+    options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
+                         heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
+                         link_timeout=args.link_timeout, approach_speed=args.approach_speed, limits=limits)
+    bridge, target = None, args.target
+    sinks: list = [StatusLine()]
+    try:
+        if target is None:
+            bridge, target = _start_bridge(mission, args.speedup)
+        session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup)
+    except LinkError as exc:
+        if bridge is not None:
+            bridge.stop()
+        print(f"rov-mav run: error: {exc}", file=sys.stderr)
+        return 1
+    if args.log:
+        run_log = RunLog(args.log)
+        session.taps.append(run_log.log_mavlink)
+        sinks.append(run_log)
+    rerun_target, rerun = rerun_sink(args, model, mission, Path(f"out/run-{mission.name}/run.rrd"))
+    if rerun is not None:
+        sinks.append(rerun)
+    true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
+    runner = Runner(session, mission, Controller(model, settings), Actuation(model, limits.max_thrust), options,
+                    sinks, true_disturbance)
+    try:
+        result = runner.run()
+    finally:
+        for sink in sinks:
+            sink.close()
+        session.close()
+        if bridge is not None:
+            bridge.stop()
+    loop = result.loop_figures()
+    metrics = run_metrics(mission.name, settings.kind, result.t, result.eta, result.eta_d, result.tau,
+                          result.tau_hat, true_disturbance, result.completed)
+    metrics["loop"] = loop
+    if args.metrics:
+        path = Path(args.metrics)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(metrics, indent=2) + "\n")
+    status = "completed" if result.completed else f"NOT completed ({result.reason})"
+    print(f"{mission.name} / {settings.kind}{' (dry run)' if args.dry_run else ''}: {status}, "
+          f"{metrics['duration_s']:.1f} s of mission flown")
+    if result.t.size:
+        print(f"  position error RMS {metrics['rms_position_error_m'] * 100:.2f} cm (steady "
+              f"{metrics['rms_position_error_steady_m'] * 100:.2f} cm, max {metrics['max_position_error_m'] * 100:.2f}"
+              f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad")
+    print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
+          f"override-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms", flush=True)
+    print(f"  rerun: {rerun_target.describe()}")
+    if rerun is not None:
+        print(f"  {rerun.stats.describe(1.0 / args.rate)}")
+    return result.code

@@ -1,0 +1,309 @@
+"""The MAVLink session with an ArduSub vehicle: connect, identify, parameters, mode, arming, streams, overrides.
+
+Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and the held RC override (the
+control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
+never sees a lost link. Everything that waits for an answer pumps the link meanwhile (so heartbeats and overrides
+keep flowing) and gives up after a wall-clock timeout.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil  # noqa: E402
+
+from rov_mav.vehicle_clock import VehicleClock  # noqa: E402
+
+mavutil.set_dialect("ardupilotmega")
+mavlink = mavutil.mavlink
+
+HEARTBEAT_PERIOD = 1.0          # vehicle s
+MANUAL = 19                     # ArduSub custom_mode
+NEUTRAL = 1500
+CHANNELS = 8
+RC_FIELDS = 18
+RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
+ATTEMPTS = 3
+REPLY_TIMEOUT = 1.5             # wall s per attempt
+RECEIVE_BUFFER = 1 << 20         # bytes
+GCS_SYSID_PARAMS = ("MAV_GCS_SYSID", "SYSID_MYGCS")   # ArduSub 4.7+, before 4.7
+
+
+class LinkError(Exception):
+    """The session cannot go on; the message says why in one line."""
+
+
+@dataclass(frozen=True)
+class VehicleId:
+    """Who answered: from its HEARTBEAT."""
+
+    sysid: int
+    compid: int
+    mav_type: int
+    autopilot: int
+
+
+def _enum_name(enum: str, value: int) -> str:
+    entry = mavlink.enums.get(enum, {}).get(value)
+    return entry.name if entry is not None else str(value)
+
+
+class Session:
+    """One link to one vehicle. Create with `Session.open(target)`, then `connect()`."""
+
+    def __init__(self, conn, clock: VehicleClock, describe: str):
+        self.conn = conn
+        self.clock = clock
+        self.target = describe
+        self.vehicle: VehicleId | None = None
+        self.heartbeat = None                 # the vehicle's last HEARTBEAT
+        self.override: list[int] | None = None   # PWMs held (resent at `override_rate` vehicle Hz)
+        self.override_rate = 50.0
+        self.interrupt: Callable[[], None] | None = None   # called while waiting; may raise to stop waiting
+        self.strangers: dict[str, int] = {}   # what other stations were seen doing, with counts
+        self.taps: list[Callable[[object, bool], None]] = []   # (msg, outgoing) for every message in and out
+        self.heartbeats = False
+        self._next_heartbeat = 0.0
+        self._last_override_t = -1e9
+        self._wall_last_heartbeat = -1e9
+        conn.message_hooks.append(self._incoming)
+        conn.mav.set_send_callback(self._outgoing)
+
+    @classmethod
+    def open(cls, target: str, sysid: int = 255, baud: int = 115200, rate_hint: float = 1.0) -> "Session":
+        """Open a pymavlink connection string (udp:/udpin:/udpout:/tcp:/serial device); LinkError if it cannot."""
+        try:
+            conn = mavutil.mavlink_connection(target, baud=baud, source_system=sysid,
+                                              source_component=mavlink.MAV_COMP_ID_MISSIONPLANNER,
+                                              autoreconnect=True)
+        except Exception as exc:         # noqa: BLE001 -- pymavlink raises anything from OSError to SerialException
+            raise LinkError(f"cannot open {target}: {exc}") from None
+        sock = getattr(conn, "port", None)
+        if hasattr(sock, "setsockopt"):             # UDP: room for a burst of telemetry at high speedups
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
+        return cls(conn, VehicleClock(rate_hint), target)
+
+    def close(self) -> None:
+        self.conn.close()
+
+    # -- identity --------------------------------------------------------------------------------------------
+
+    def connect(self, timeout: float) -> VehicleId:
+        """Wait (wall s) for a vehicle's HEARTBEAT; refuse anything but ArduSub on a sub. Our own heartbeat starts
+        only with `start_heartbeats()`, once we mean to stay."""
+        deadline = time.monotonic() + timeout
+        next_hello = 0.0
+        while time.monotonic() < deadline:
+            if time.monotonic() >= next_hello:     # a TIMESYNC, so that a vehicle listening on UDP learns our
+                next_hello = time.monotonic() + 0.5   # address; not a heartbeat, which would arm its GCS failsafe
+                self._send("timesync", 0, time.monotonic_ns())
+            for msg, _ in self._receive(0.1):
+                if msg.get_type() == "HEARTBEAT" and self.conn.probably_vehicle_heartbeat(msg):
+                    return self._identify(msg)
+            self._check_interrupt()
+        raise LinkError(f"no HEARTBEAT from a vehicle on {self.target} within {timeout:g} s: is the vehicle (or "
+                        f"`rov-mav sim-bridge`) running and sending to this address?")
+
+    def _identify(self, msg) -> VehicleId:
+        if msg.type != mavlink.MAV_TYPE_SUBMARINE or msg.autopilot != mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA:
+            raise LinkError(f"refusing to fly {self.target}: it is a {_enum_name('MAV_TYPE', msg.type)} on "
+                            f"{_enum_name('MAV_AUTOPILOT', msg.autopilot)}, not a submarine on ArduPilot (ArduSub)")
+        self.vehicle = VehicleId(msg.get_srcSystem(), msg.get_srcComponent(), msg.type, msg.autopilot)
+        self.heartbeat = msg
+        self.conn.target_system, self.conn.target_component = self.vehicle.sysid, self.vehicle.compid
+        return self.vehicle
+
+    @property
+    def armed(self) -> bool:
+        return bool(self.heartbeat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+
+    @property
+    def sysid(self) -> int:
+        return self.conn.mav.srcSystem
+
+    def use_sysid(self, sysid: int) -> None:
+        """Speak as `sysid` from now on (the vehicle accepts overrides only from its GCS sysid)."""
+        self.conn.mav.srcSystem = sysid
+
+    def gcs_sysid(self) -> tuple[str, int] | None:
+        """(parameter name, value) of the vehicle's GCS sysid (MAV_GCS_SYSID from 4.7, else SYSID_MYGCS)."""
+        found = self.get_params(GCS_SYSID_PARAMS, any_of=True)
+        for name in GCS_SYSID_PARAMS:
+            if name in found:
+                return name, int(found[name][0])
+        return None
+
+    # -- parameters ------------------------------------------------------------------------------------------
+
+    def get_params(self, names, any_of: bool = False) -> dict[str, tuple[float, int]]:
+        """{name: (value, MAV_PARAM_TYPE)} for those of `names` the vehicle answered (all, or the first if any_of)."""
+        found: dict[str, tuple[float, int]] = {}
+        for _ in range(ATTEMPTS):
+            for name in names:
+                if name not in found:
+                    self._send("param_request_read", self.vehicle.sysid, self.vehicle.compid, name.encode(), -1)
+            deadline = time.monotonic() + REPLY_TIMEOUT
+            while time.monotonic() < deadline and len(found) < len(names) and not (any_of and found):
+                for msg, _ in self._receive(0.05):
+                    if msg.get_type() == "PARAM_VALUE" and msg.param_id in names:
+                        found[msg.param_id] = (float(msg.param_value), int(msg.param_type))
+                self._check_interrupt()
+            if len(found) == len(names) or (any_of and found):
+                break
+        return found
+
+    def set_param(self, name: str, value: float, ptype: int) -> bool:
+        """PARAM_SET, confirmed by a PARAM_VALUE carrying the new value; False if never confirmed."""
+        for _ in range(ATTEMPTS):
+            self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
+            reply = self.wait(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name
+                              and abs(m.param_value - value) < 1e-3, REPLY_TIMEOUT)
+            if reply is not None:
+                return True
+        return False
+
+    # -- commands --------------------------------------------------------------------------------------------
+
+    def command(self, command: int, *params: float) -> int | None:
+        """COMMAND_LONG; the MAV_RESULT of its COMMAND_ACK, or None if none came."""
+        for attempt in range(ATTEMPTS):
+            self.fire(command, *params, confirmation=attempt)
+            ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, REPLY_TIMEOUT)
+            if ack is not None:
+                return int(ack.result)
+        return None
+
+    def fire(self, command: int, *params: float, confirmation: int = 0) -> None:
+        """COMMAND_LONG without waiting for its COMMAND_ACK (when the link may be gone)."""
+        p = list(params) + [0.0] * (7 - len(params))
+        self._send("command_long", self.vehicle.sysid, self.vehicle.compid, command, confirmation, *p)
+
+    def set_mode(self, custom_mode: int) -> bool:
+        """DO_SET_MODE, accepted and confirmed by the next HEARTBEAT."""
+        result = self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode)
+        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
+            lambda hb: hb.custom_mode == custom_mode)
+
+    def arm(self, arm: bool) -> bool:
+        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM), accepted and confirmed by the next HEARTBEAT."""
+        result = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0)
+        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
+            lambda hb: bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == arm)
+
+    def _heartbeat_shows(self, check) -> bool:
+        timeout = self.clock.wall_seconds(2.5 * HEARTBEAT_PERIOD) + 0.5
+        return self.wait(lambda m: m.get_type() == "HEARTBEAT" and self._from_vehicle(m) and check(m),
+                         timeout) is not None
+
+    def set_message_interval(self, msg_id: int, hz: float) -> bool:
+        """MAV_CMD_SET_MESSAGE_INTERVAL (vehicle-time Hz); True if accepted. Not a parameter: nothing persists."""
+        return self.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz) == mavlink.MAV_RESULT_ACCEPTED
+
+    # -- RC override -----------------------------------------------------------------------------------------
+
+    def send_override(self, pwms) -> None:
+        """RC_CHANNELS_OVERRIDE of channels 1-8 now, and hold them (resent at `override_rate` vehicle Hz)."""
+        self.override = [int(round(v)) for v in pwms]
+        self._send_override(self.override)
+
+    def release_overrides(self) -> None:
+        """Stop holding and hand channels 1-8 back (0 = release); channels 9-18 untouched."""
+        self.override = None
+        self._send_override([RELEASE] * CHANNELS)
+
+    def _send_override(self, values: list[int]) -> None:
+        fields = list(values) + [0] * (RC_FIELDS - CHANNELS)        # 9-18: 0 = leave alone
+        self._send("rc_channels_override", self.vehicle.sysid, self.vehicle.compid, *fields)
+        self._last_override_t = self.clock.now()
+
+    # -- pumping ---------------------------------------------------------------------------------------------
+
+    def poll(self, timeout: float) -> list[tuple[object, float]]:
+        """Messages from the vehicle received within `timeout` wall s, each with its wall arrival time
+        (perf_counter); sends the heartbeat and the held override when due."""
+        out = [(m, w) for m, w in self._receive(timeout) if self._from_vehicle(m)]
+        self.service()
+        return out
+
+    def wait(self, predicate, timeout: float):
+        """The first message from the vehicle satisfying `predicate` within `timeout` wall s, else None."""
+        deadline = time.monotonic() + timeout
+        while (left := deadline - time.monotonic()) > 0:
+            for msg, _ in self.poll(min(left, 0.02)):
+                if predicate(msg):
+                    return msg
+            self._check_interrupt()
+        return None
+
+    def start_heartbeats(self) -> None:
+        """Send the GCS heartbeat from now on (1 Hz of vehicle time, and at least 1 Hz of wall time)."""
+        self.heartbeats = True
+        self.service()
+
+    def service(self) -> None:
+        """Send the GCS heartbeat and the held override if they are due in vehicle time."""
+        now = self.clock.now()
+        if self.heartbeats and (now >= self._next_heartbeat
+                                or time.perf_counter() - self._wall_last_heartbeat >= HEARTBEAT_PERIOD):
+            self._send_heartbeat()
+            self._next_heartbeat = now + HEARTBEAT_PERIOD
+        if self.override is not None and now - self._last_override_t >= 1.0 / self.override_rate:
+            self._send_override(self.override)
+
+    def _send_heartbeat(self) -> None:
+        self._send("heartbeat", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
+        self._wall_last_heartbeat = time.perf_counter()
+
+    def _check_interrupt(self) -> None:
+        if self.interrupt is not None:
+            self.interrupt()
+
+    def _send(self, name: str, *fields) -> None:
+        try:
+            getattr(self.conn.mav, f"{name}_send")(*fields)
+        except OSError:
+            pass                           # a dead link shows as silence, which the watchdog handles
+
+    def _receive(self, timeout: float) -> list[tuple[object, float]]:
+        out = []
+        if self.conn.select(timeout):
+            while True:
+                try:
+                    msg = self.conn.recv_msg()
+                except (OSError, mavlink.MAVError):
+                    break
+                if msg is None:
+                    break
+                if msg.get_type() != "BAD_DATA":
+                    out.append((msg, time.perf_counter()))
+        return out
+
+    def _from_vehicle(self, msg) -> bool:
+        v = self.vehicle
+        return v is not None and msg.get_srcSystem() == v.sysid and msg.get_srcComponent() == v.compid
+
+    def _incoming(self, _conn, msg) -> None:
+        kind = msg.get_type()
+        if kind == "BAD_DATA":
+            return
+        for tap in self.taps:
+            tap(msg, False)
+        if self.vehicle is None:
+            return
+        if self._from_vehicle(msg):
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            if boot_ms is not None:
+                self.clock.observe(boot_ms / 1000.0)
+            if kind == "HEARTBEAT":
+                self.heartbeat = msg
+        elif kind == "RC_CHANNELS_OVERRIDE" or (kind == "HEARTBEAT" and msg.get_srcSystem() == self.sysid):
+            self.strangers[kind] = self.strangers.get(kind, 0) + 1
+
+    def _outgoing(self, msg) -> None:
+        for tap in self.taps:
+            tap(msg, True)

@@ -1,0 +1,73 @@
+"""The run log (`--log DIR`): ticks.csv (state, reference, commands, the controller's internals), events.csv, and
+the raw MAVLink traffic both ways as mavlink.tlog (pymavlink's logfile format: 8-byte big-endian microseconds
+since the epoch, then the packet; open it with `mavutil.mavlink_connection(path)` or MAVExplorer).
+
+The loop only queues; a writer thread formats and writes, so logging never blocks a control tick.
+"""
+
+from __future__ import annotations
+
+import csv
+import queue
+import struct
+import threading
+import time
+from pathlib import Path
+
+from rov_mav.tick import TickRecord
+
+DOF = ("x", "y", "z", "phi", "theta", "psi")
+BODY = ("u", "v", "w", "p", "q", "r")
+WRENCH = ("X", "Y", "Z", "K", "M", "N")
+COLUMNS = (["t", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF]
+           + [f"{d}_ddot_d" for d in DOF] + [f"tau_{w}" for w in WRENCH] + [f"tau_hat_{w}" for w in WRENCH]
+           + [f"s_{d}" for d in DOF] + [f"gamma_{d}" for d in DOF] + [f"thrust_{i}" for i in range(1, 9)]
+           + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "control_rate", "battery_voltage"])
+_STOP = object()
+
+
+def tick_row(r: TickRecord) -> list[str]:
+    values = [r.t, r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
+              *r.pwm, r.telemetry_age, r.control_rate, r.battery_voltage]
+    return [f"{float(v):.9g}" for v in values]
+
+
+class RunLog:
+    """A sink (log_tick, log_event, close) plus `log_mavlink(msg, outgoing)` for a session's taps."""
+
+    def __init__(self, directory: str | Path):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._write, name="run-log", daemon=True)
+        self._thread.start()
+
+    def log_tick(self, record: TickRecord) -> None:
+        self._queue.put(("tick", record))
+
+    def log_event(self, t: float, text: str, level: str) -> None:
+        self._queue.put(("event", (t, level, text)))
+
+    def log_mavlink(self, msg, _outgoing: bool) -> None:
+        self._queue.put(("mavlink", (time.time(), msg.get_msgbuf())))
+
+    def close(self) -> None:
+        self._queue.put(_STOP)
+        self._thread.join()
+
+    def _write(self) -> None:
+        with open(self.directory / "ticks.csv", "w", newline="") as ticks_file, \
+                open(self.directory / "events.csv", "w", newline="") as events_file, \
+                open(self.directory / "mavlink.tlog", "wb") as tlog:
+            ticks, events = csv.writer(ticks_file), csv.writer(events_file)
+            ticks.writerow(COLUMNS)
+            events.writerow(["t", "level", "text"])
+            while (item := self._queue.get()) is not _STOP:
+                kind, payload = item
+                if kind == "tick":
+                    ticks.writerow(tick_row(payload))
+                elif kind == "event":
+                    events.writerow([f"{payload[0]:.3f}", payload[1], payload[2]])
+                else:
+                    wall, packet = payload
+                    tlog.write(struct.pack(">Q", int(wall * 1e6) & ~3) + bytes(packet))

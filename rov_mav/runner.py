@@ -1,0 +1,568 @@
+"""The real-time loop against a vehicle: safe start, control ticks on the vehicle's telemetry, watchdog, limits, and
+a safe stop on every exit path.
+
+Start: identify the vehicle (ArduSub on a sub, not armed by someone else, nobody else overriding), ask for the
+telemetry the law needs and check its rate, save SERVO1..8_FUNCTION, hold neutral overrides, switch the eight
+outputs to RCIN passthrough (each confirmed), MANUAL, arm.
+Tick (each new ATTITUDE + LOCAL_POSITION_NED pair): reference -> law + adaptation -> allocation -> T200 map ->
+RC_CHANNELS_OVERRIDE, a TickRecord to every sink.
+Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
+channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm, restore SERVO1..8_FUNCTION, restore the
+message rates, and say what was done; if the vehicle no longer answers, say that its thrusters hold their last
+command.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+import traceback
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rov_mav.actuation import Actuation
+from rov_mav.approach import approach
+from rov_mav.controller import Controller
+from rov_mav.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink
+from rov_mav.metrics import tracking_errors
+from rov_mav.mission import Mission
+from rov_mav.tick import TickRecord
+from rov_mav.vehicle_state import State, StateDecoder
+
+PASSTHROUGH_BASE = 50            # SERVOn_FUNCTION 50 + n = RCINn
+MOTOR_BASE = 32                  # SERVOn_FUNCTION 32 + n = motor n
+SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0}   # vehicle Hz
+RATE_WINDOW = 1.0                # vehicle s of telemetry measured before arming
+RATE_TOLERANCE = 0.8             # fraction of the asked rate that must arrive
+RC_NEUTRAL_TOLERANCE = 25        # us: RC input further than this from 1500 means someone is driving
+NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
+THRUST_MARGIN = 1.1              # reported thrust above this x the cap trips the limit
+SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
+PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
+STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
+
+
+class Abort(Exception):
+    """The run ends early for a stated reason; `code` is the process exit status."""
+
+    def __init__(self, reason: str, code: int = 1):
+        super().__init__(reason)
+        self.reason = reason
+        self.code = code
+
+
+class LinkLost(Abort):
+    pass
+
+
+@dataclass(frozen=True)
+class Limits:
+    max_depth: float | None = None            # m
+    max_tracking_error: float | None = None   # m
+    max_thrust: float | None = None           # N per thruster
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    rate: float = 50.0                 # Hz of vehicle time: telemetry and overrides
+    dry_run: bool = False
+    force: bool = False
+    sysid: int | None = None           # our sysid; default: the vehicle's GCS sysid parameter
+    heartbeat_timeout: float = 15.0    # wall s
+    position_timeout: float = 90.0     # wall s to wait for LOCAL_POSITION_NED
+    stale_periods: float = 3.0         # telemetry older than this many periods -> neutral
+    link_timeout: float = 2.0          # vehicle s without telemetry -> abort
+    approach_speed: float = 0.2        # m/s to the mission's start pose
+    limits: Limits = Limits()
+
+
+@dataclass
+class RunResult:
+    code: int
+    reason: str
+    completed: bool
+    t: np.ndarray                      # (N,) mission ticks, vehicle s since the mission started
+    eta: np.ndarray                    # (N, 6)
+    eta_d: np.ndarray                  # (N, 6)
+    tau: np.ndarray                    # (N, 6)
+    tau_hat: np.ndarray                # (N, 6)
+    latency_ms: np.ndarray             # (M,) telemetry in -> override out, every tick
+    tick_times: np.ndarray             # (M,) vehicle s of every tick
+    report: list[str] = field(default_factory=list)
+
+    def loop_figures(self) -> dict:
+        """p50/p99 latency (ms) and the achieved control rate (ticks per vehicle second)."""
+        span = self.tick_times[-1] - self.tick_times[0] if self.tick_times.size > 1 else 0.0
+        return {
+            "ticks": int(self.tick_times.size),
+            "control_rate_hz": (self.tick_times.size - 1) / span if span > 0 else 0.0,
+            "latency_p50_ms": float(np.percentile(self.latency_ms, 50)) if self.latency_ms.size else float("nan"),
+            "latency_p99_ms": float(np.percentile(self.latency_ms, 99)) if self.latency_ms.size else float("nan"),
+        }
+
+
+class Runner:
+    """Flies `mission` with `controller` over `session`; every sink gets log_tick / log_event / close."""
+
+    def __init__(self, session: Session, mission: Mission, controller: Controller, actuation: Actuation,
+                 options: RunOptions, sinks: list, true_disturbance: np.ndarray | None = None):
+        self.session = session
+        self.mission = mission
+        self.controller = controller
+        self.actuation = actuation
+        self.options = options
+        self.sinks = sinks
+        self.true_disturbance = true_disturbance
+        self.decoder = StateDecoder()
+        self.period = 1.0 / options.rate
+        self.saved_functions: dict[str, tuple[float, int]] = {}
+        self.changed_functions: list[str] = []
+        self.streams_set: list[int] = []
+        self.touched = False          # an override went out
+        self.armed_by_us = False
+        self.signal_name: str | None = None
+        self.stopping = False
+        self.last_state: State | None = None
+        self.last_override: list[int] | None = None
+        self.lead_in: Mission | None = None
+        self.t_start: float | None = None      # vehicle time of the first tick
+        self._prev_t = 0.0
+        self.stale = False
+        self.stale_episodes = 0
+        self.warned: set[str] = set()
+        self._ticks: deque[float] = deque()
+        self._log = {k: [] for k in ("t", "eta", "eta_d", "tau", "tau_hat")}
+        self._latency: list[float] = []
+        self._tick_times: list[float] = []
+
+    # -- top level -------------------------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        previous = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        self.session.interrupt = self._interrupt
+        completed, code, reason = False, 0, "mission complete"
+        try:
+            self._prepare()
+            if not self.options.dry_run:
+                self._take_over()
+            self._fly()
+            completed = True
+        except Abort as exc:
+            code, reason = exc.code, exc.reason
+        except LinkError as exc:
+            code, reason = 1, str(exc)
+        except Exception as exc:     # noqa: BLE001 -- any bug must still end in a safe stop
+            code, reason = 1, f"internal error: {exc!r}"
+            self.say(traceback.format_exc().rstrip(), "error")
+        finally:
+            self.stopping = True
+            self.session.interrupt = None
+            report = self._safe_stop(reason)
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+        return self._result(code, reason, completed, report)
+
+    def say(self, text: str, level: str = "info") -> None:
+        t = self._mission_time(self.last_state.t) if self.last_state is not None else 0.0
+        for sink in self.sinks:
+            sink.log_event(t, text, level)
+
+    def _on_signal(self, signum, _frame) -> None:
+        name = signal.Signals(signum).name
+        if self.stopping:
+            self.say(f"{name} received: still stopping safely, please wait", "warning")
+            return
+        self.signal_name = self.signal_name or name
+
+    def _interrupt(self) -> None:
+        if self.signal_name is not None and not self.stopping:
+            signum = signal.Signals[self.signal_name]
+            raise Abort(f"stopped by {self.signal_name}", 128 + signum)
+
+    # -- start -----------------------------------------------------------------------------------------------
+
+    def _prepare(self) -> None:
+        s, o = self.session, self.options
+        self._warm_up()
+        vehicle = s.connect(o.heartbeat_timeout)
+        self.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
+        if s.armed and not o.force:
+            raise Abort("the vehicle is already armed by someone else: refusing to take it over (--force to "
+                        "override)")
+        self._use_gcs_sysid()
+        s.start_heartbeats()
+        for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
+            msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+            hz = SIDE_RATES.get(name, o.rate)
+            if s.set_message_interval(msg_id, hz):
+                self.streams_set.append(msg_id)
+            elif name in ("ATTITUDE", "LOCAL_POSITION_NED"):
+                raise Abort(f"the vehicle refused SET_MESSAGE_INTERVAL for {name} at {hz:g} Hz")
+        self._wait_for_state()
+        self._check_rates_and_rc()
+        if not o.dry_run:
+            names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
+            self.saved_functions = s.get_params(names)
+            missing = [n for n in names if n not in self.saved_functions]
+            if missing:
+                raise Abort(f"could not read {', '.join(missing)} from the vehicle")
+            self._recover_stale_passthrough()
+
+    def _warm_up(self) -> None:
+        """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
+        reference = self.mission.reference(0.0)
+        eta = reference[:6] + 0.1
+        self.controller.step(eta, np.zeros(6), reference, self.period)
+        self.controller.tau_hat[:] = 0.0
+        self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
+        self.actuation.command(np.zeros(6))
+        approach(eta, self.mission.start_pose, self.options.approach_speed)
+        tracking_errors(eta[None], reference[None, :6])
+
+    def _use_gcs_sysid(self) -> None:
+        s, o = self.session, self.options
+        found = s.gcs_sysid()
+        if found is None:
+            s.use_sysid(o.sysid or s.sysid)
+            self.say(f"the vehicle did not report MAV_GCS_SYSID or SYSID_MYGCS: speaking as sysid {s.sysid}",
+                     "warning")
+            return
+        name, value = found
+        if o.sysid is not None and o.sysid != value and not o.dry_run:
+            raise Abort(f"--sysid {o.sysid} differs from the vehicle's {name} = {value}: ArduSub ignores overrides "
+                        f"from any other sysid")
+        s.use_sysid(o.sysid if o.sysid is not None else value)
+        self.say(f"speaking as GCS sysid {s.sysid} ({name} = {value})")
+
+    def _wait_for_state(self) -> None:
+        """Until ATTITUDE and LOCAL_POSITION_NED have both arrived, with progress messages and a timeout."""
+        start = time.monotonic()
+        next_note = start + PROGRESS_EVERY
+        while self.decoder.attitude is None or self.decoder.position is None:
+            self._pump(0.05)
+            now = time.monotonic()
+            missing = self._missing_state()
+            if now - start > self.options.position_timeout:
+                raise Abort(f"no {missing} from the vehicle after {self.options.position_timeout:g} s: "
+                            + _MISSING_HELP.get(missing, "check the link"))
+            if now >= next_note:
+                next_note = now + PROGRESS_EVERY
+                self.say(f"waiting for {missing} ({now - start:.0f} s of {self.options.position_timeout:g} s)")
+
+    def _missing_state(self) -> str:
+        names = [n for n, m in (("ATTITUDE", self.decoder.attitude), ("LOCAL_POSITION_NED", self.decoder.position))
+                 if m is None]
+        return " and ".join(names)
+
+    def _check_rates_and_rc(self) -> None:
+        """Measure the state messages' rates over RATE_WINDOW vehicle s; look for anyone else driving."""
+        stamps: dict[str, list[float]] = {"ATTITUDE": [], "LOCAL_POSITION_NED": []}
+        rc = []
+        t_first = None
+        deadline = time.monotonic() + self.session.clock.wall_seconds(RATE_WINDOW) * 3 + 2.0
+        while time.monotonic() < deadline:
+            for msg, _ in self.session.poll(0.02):
+                self._track(msg)
+                kind = msg.get_type()
+                if kind in stamps:
+                    stamps[kind].append(msg.time_boot_ms / 1000.0)
+                    t_first = stamps[kind][0] if t_first is None else t_first
+                elif kind == "RC_CHANNELS":
+                    rc.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
+            if t_first is not None and self.session.clock.now() - t_first >= RATE_WINDOW:
+                break
+        rates = {k: (len(v) - 1) / (v[-1] - v[0]) if len(v) > 1 and v[-1] > v[0] else 0.0
+                 for k, v in stamps.items()}
+        slow = {k: r for k, r in rates.items() if r < RATE_TOLERANCE * self.options.rate}
+        self.say("telemetry: " + ", ".join(f"{k} {r:.1f} Hz" for k, r in rates.items())
+                 + f" (asked {self.options.rate:g} Hz of vehicle time)")
+        if slow:
+            raise Abort("telemetry too slow for the control rate: " + ", ".join(f"{k} {r:.1f} Hz" for k, r in
+                        slow.items()) + f" < {RATE_TOLERANCE:.0%} of {self.options.rate:g} Hz (lower --rate, or "
+                        "check the link's bandwidth)")
+        driving = [f"RC{i + 1}={v}" for row in rc[-1:] for i, v in enumerate(row)
+                   if v != 0 and abs(v - NEUTRAL) > RC_NEUTRAL_TOLERANCE]
+        others = [f"{n} x {k}" for k, n in self.session.strangers.items()]
+        if (driving or others) and not self.options.force:
+            raise Abort("another station seems to be driving the vehicle (" + ", ".join(driving + others)
+                        + "): refusing to start (--force to take over)")
+
+    def _recover_stale_passthrough(self) -> None:
+        """Outputs already on RCIN passthrough (a run that lost its link?) are restored to their motors."""
+        for n in range(1, CHANNELS + 1):
+            name = f"SERVO{n}_FUNCTION"
+            value, ptype = self.saved_functions[name]
+            if int(value) == PASSTHROUGH_BASE + n:
+                self.saved_functions[name] = (float(MOTOR_BASE + n), ptype)
+                self.say(f"{name} is already RCIN{n} passthrough (left by an interrupted run?): it will be "
+                         f"restored to motor {n} ({MOTOR_BASE + n})", "warning")
+
+    def _take_over(self) -> None:
+        s = self.session
+        s.override_rate = self.options.rate
+        self._send_neutral()
+        self._pump_for(NEUTRAL_HOLD)
+        for n in range(1, CHANNELS + 1):
+            name = f"SERVO{n}_FUNCTION"
+            value, ptype = self.saved_functions[name]
+            if int(value) == PASSTHROUGH_BASE + n:
+                continue
+            self.changed_functions.append(name)
+            if not s.set_param(name, PASSTHROUGH_BASE + n, ptype):
+                raise Abort(f"the vehicle did not confirm {name} = {PASSTHROUGH_BASE + n} (RCIN{n} passthrough)")
+        self.say("SERVO1..8_FUNCTION set to RCIN1..8 passthrough (confirmed)")
+        if s.heartbeat.custom_mode != MANUAL and not s.set_mode(MANUAL):
+            raise Abort("the vehicle did not enter MANUAL mode")
+        self.armed_by_us = True
+        if not s.arm(True):
+            raise Abort("arming failed: the vehicle refused or did not confirm it")
+        self.say("armed in MANUAL")
+
+    # -- the loop --------------------------------------------------------------------------------------------
+
+    def _fly(self) -> None:
+        o = self.options
+        stale_after = o.stale_periods * self.period
+        watch_from = self.session.clock.now()        # the watchdog counts from the loop's start at the earliest
+        while True:
+            self._interrupt()
+            state = self._pump(min(self.session.clock.wall_seconds(self.period), 0.02))
+            if state is not None:
+                if self._tick(state):
+                    return
+                continue
+            seen = self.last_state.t if self.last_state is not None else watch_from
+            age = self.session.clock.now() - max(seen, watch_from)
+            if age > o.link_timeout and (state := self._pump(0.0)) is not None:
+                self._tick(state)           # it was this process that stalled, not the link
+                continue
+            if age > o.link_timeout:
+                raise LinkLost(f"link lost: no telemetry from the vehicle for {age:.1f} s of vehicle time "
+                               f"(limit {o.link_timeout:g} s)")
+            if age > stale_after and not self.stale:
+                self.stale = True
+                self.stale_episodes += 1
+                if not o.dry_run:
+                    self._send_neutral()
+                if self.stale_episodes <= STALE_REPORTS:
+                    more = " (further episodes are counted in the final report)" \
+                        if self.stale_episodes == STALE_REPORTS else ""
+                    self.say(f"telemetry stale ({age * 1e3:.0f} ms): neutral on all thrusters until it returns"
+                             + more, "warning")
+
+    def _pump(self, timeout: float) -> State | None:
+        """Read what arrived; returns the newest complete state, if any."""
+        received = None
+        for msg, wall in self.session.poll(timeout):
+            if self._track(msg):
+                received = wall
+        if received is None:
+            return None
+        self.last_state = self.decoder.state(received)
+        return self.last_state
+
+    def _pump_for(self, vehicle_seconds: float) -> None:
+        end = time.monotonic() + self.session.clock.wall_seconds(vehicle_seconds)
+        while time.monotonic() < end:
+            self._pump(0.01)
+
+    def _track(self, msg) -> bool:
+        """Decode one message (True if it completes a state); notice the vehicle's texts and its disarming."""
+        kind = msg.get_type()
+        if kind == "STATUSTEXT":
+            self.say(f"vehicle: {msg.text}", "warning" if msg.severity <= mavlink.MAV_SEVERITY_WARNING else "info")
+        elif kind == "HEARTBEAT" and self.armed_by_us and not self.stopping and not self.options.dry_run \
+                and not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED and self.t_start is not None:
+            raise Abort("the vehicle disarmed itself during the run (a failsafe?)")
+        return self.decoder.update(msg)
+
+    def _mission_time(self, t: float) -> float:
+        """Vehicle s since the mission proper started (negative during the lead-in)."""
+        if self.t_start is None:
+            return 0.0
+        lead = self.lead_in.duration if self.lead_in is not None else 0.0
+        return t - self.t_start - lead
+
+    def _tick(self, state: State) -> bool:
+        """One control tick; True when the mission is complete."""
+        o = self.options
+        if self.t_start is None:
+            self.t_start = state.t
+            self.lead_in = approach(state.eta, self.mission.start_pose, o.approach_speed)
+            if self.lead_in is not None:
+                self.say(f"lead-in to the mission's start pose: {self.lead_in.duration:.1f} s")
+            self._prev_t = state.t - self.period
+        if self.stale:
+            self.stale = False
+            if self.stale_episodes <= STALE_REPORTS:
+                self.say("telemetry back: control resumed")
+        t = self._mission_time(state.t)
+        reference = self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
+        dt = min(max(state.t - self._prev_t, 0.0), o.stale_periods * self.period)
+        self._prev_t = state.t
+        out = self.controller.step(state.eta, state.nu, reference, dt)
+        if self.decoder.voltage is not None:
+            self.actuation.set_voltage(self.decoder.voltage)
+        thrusts, pwm, _ = self.actuation.command(out.tau)
+        self._check_limits(state, reference)
+        if not o.dry_run:
+            self.session.send_override(pwm)
+            self.last_override = self.session.override
+        latency = time.perf_counter() - state.received
+        age = self.session.clock.now() - state.t
+        self._count_tick(state.t, latency)
+        if t >= 0:
+            for key, value in (("t", t), ("eta", state.eta), ("eta_d", reference[:6]), ("tau", out.tau),
+                               ("tau_hat", out.tau_hat)):
+                self._log[key].append(value)
+        record = TickRecord(t=t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau, tau_hat=out.tau_hat,
+                            s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
+                            telemetry_age=age, control_rate=len(self._ticks),
+                            battery_voltage=self.actuation.voltage, true_disturbance=self.true_disturbance)
+        for sink in self.sinks:
+            sink.log_tick(record)
+        return t >= self.mission.duration
+
+    def _count_tick(self, t: float, latency: float) -> None:
+        self._ticks.append(t)
+        while self._ticks and self._ticks[0] <= t - 1.0:
+            self._ticks.popleft()
+        self._latency.append(latency * 1e3)
+        self._tick_times.append(t)
+
+    def _check_limits(self, state: State, reference: np.ndarray) -> None:
+        lim = self.options.limits
+        crossed = []
+        if lim.max_depth is not None and state.eta[2] > lim.max_depth:
+            crossed.append(f"depth {state.eta[2]:.2f} m > max_depth {lim.max_depth:g} m")
+        if lim.max_tracking_error is not None:
+            error = float(tracking_errors(state.eta[None], reference[None, :6])[0][0])
+            if error > lim.max_tracking_error:
+                crossed.append(f"tracking error {error:.2f} m > max_tracking_error {lim.max_tracking_error:g} m")
+        servo = self.decoder.servo
+        if lim.max_thrust is not None and servo is not None:
+            worst = float(np.max(np.abs(self.actuation.thrust_of(servo))))
+            if worst > lim.max_thrust * THRUST_MARGIN:
+                crossed.append(f"thruster output {worst:.1f} N (SERVO_OUTPUT_RAW) > max_thrust {lim.max_thrust:g} N")
+        if not crossed:
+            return
+        if not self.options.dry_run:
+            raise Abort("limit crossed: " + "; ".join(crossed))
+        for text in crossed:
+            kind = text.split(" ")[0]
+            if kind not in self.warned:
+                self.warned.add(kind)
+                self.say(f"dry run: would abort here: {text}", "warning")
+
+    # -- stop ------------------------------------------------------------------------------------------------
+
+    def _send_neutral(self) -> None:
+        self.session.send_override([NEUTRAL] * CHANNELS)
+        self.touched = True
+
+    def _safe_stop(self, reason: str) -> list[str]:
+        """Neutral, release, disarm, restore; returns what was done, one line each."""
+        s = self.session
+        report = [f"stopping: {reason}"]
+        if self.stale_episodes:
+            report.append(f"watchdog: telemetry went stale {self.stale_episodes} time(s) (older than "
+                          f"{self.options.stale_periods:g} control periods); neutral was sent each time")
+        if s.vehicle is None:
+            return self._finish(report + ["no ArduSub vehicle was taken over: nothing was sent that changes one"])
+        if not self.touched and not self.changed_functions and not self.armed_by_us:
+            if not self.options.dry_run:
+                report.append("nothing had been changed on the vehicle")
+            else:
+                report.append("dry run: no parameter changed, nothing armed, no override sent")
+            report += self._restore_streams(alive=self._answering())
+            return self._finish(report)
+        neutral_confirmed = self._neutral()
+        alive = neutral_confirmed or self._answering()
+        report.append("neutral 1500 us on channels 1-8: sent, "
+                      + ("confirmed by SERVO_OUTPUT_RAW" if neutral_confirmed else "NOT confirmed"))
+        if not alive:
+            # No release: arriving together with the neutral, it would cancel it (both land before the vehicle
+            # next reads its RC input), leaving the flight command in place. Neutral stays the last word.
+            s.fire(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0)
+            report.append("disarm: sent, no answer")
+            last = self.last_override or [NEUTRAL] * CHANNELS
+            report.append(
+                "THE LINK IS GONE: the vehicle did not answer. Its thrusters HOLD THEIR LAST COMMAND: RCIN "
+                "passthrough keeps the last PWM that reached it (the last flight command sent was "
+                f"{last}; neutral was sent after it, unconfirmed), arming does not gate it and ArduSub's "
+                "failsafes do not reset channels 7-8."
+                + (" SERVOn_FUNCTION were NOT restored (still RCIN passthrough): restore "
+                   + ", ".join(f"{n}={int(self.saved_functions[n][0])}" for n in self.changed_functions)
+                   + " as soon as the link is back (the next `rov-mav run` does it when it ends)."
+                   if self.changed_functions else ""))
+            return self._finish(report)
+        if not neutral_confirmed:
+            self._pump_for(NEUTRAL_HOLD)           # give the vehicle time to apply it before letting go
+        s.release_overrides()
+        report.append("RC overrides on channels 1-8 released")
+        if self.armed_by_us or s.armed:
+            report.append("disarmed (confirmed by HEARTBEAT)" if s.arm(False) else "disarm NOT confirmed")
+        restored, failed = [], []
+        for name in self.changed_functions:
+            value, ptype = self.saved_functions[name]
+            (restored if s.set_param(name, value, ptype) else failed).append(f"{name}={int(value)}")
+        if restored:
+            report.append("restored " + ", ".join(restored) + " (confirmed by PARAM_VALUE)")
+        if failed:
+            report.append("NOT restored (no confirmation): " + ", ".join(failed))
+        report += self._restore_streams(alive=True)
+        return self._finish(report)
+
+    def _neutral(self) -> bool:
+        """Send neutral and wait for SERVO_OUTPUT_RAW showing 1500 on SERVO1..8."""
+        self._send_neutral()
+        self.decoder.servo = None
+        deadline = time.monotonic() + self.session.clock.wall_seconds(SAFE_STOP_CONFIRM) + 0.3
+        while time.monotonic() < deadline:
+            self._pump(0.01)
+            if self.decoder.servo is not None:
+                if np.all(np.abs(self.decoder.servo - NEUTRAL) <= 1):
+                    return True
+                self.decoder.servo = None          # still the old outputs: wait for the next report
+        return False
+
+    def _answering(self) -> bool:
+        """Has the vehicle sent anything recently (within the link timeout)?"""
+        clock = self.session.clock
+        if not clock.started:
+            return False
+        self._pump(0.05)
+        return clock.now() - clock.last_vehicle <= self.options.link_timeout and \
+            time.perf_counter() - clock.last_wall <= clock.wall_seconds(self.options.link_timeout)
+
+    def _restore_streams(self, alive: bool) -> list[str]:
+        if not self.streams_set or not alive:
+            return []
+        ok = all(self.session.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 0) ==
+                 mavlink.MAV_RESULT_ACCEPTED for msg_id in self.streams_set)
+        return ["message rates back to the vehicle's defaults" if ok else "message rates NOT all reset"]
+
+    def _finish(self, report: list[str]) -> list[str]:
+        for line in report:
+            self.say(line, "warning" if "NOT" in line or "GONE" in line else "info")
+        return report
+
+    def _result(self, code: int, reason: str, completed: bool, report: list[str]) -> RunResult:
+        log = {k: np.array(v, dtype=float) for k, v in self._log.items()}
+        empty6 = np.zeros((0, 6))
+        return RunResult(
+            code=code, reason=reason, completed=completed, t=log["t"],
+            eta=log["eta"] if log["eta"].size else empty6, eta_d=log["eta_d"] if log["eta_d"].size else empty6,
+            tau=log["tau"] if log["tau"].size else empty6, tau_hat=log["tau_hat"] if log["tau_hat"].size else empty6,
+            latency_ms=np.array(self._latency), tick_times=np.array(self._tick_times), report=report)
+
+
+_MISSING_HELP = {
+    "LOCAL_POSITION_NED": "the vehicle's estimator has no position source (ArduSub sends it only once its EKF has "
+                          "an origin and position aiding: a DVL or similar on a real BlueROV2; about 45 s after "
+                          "boot on SITL)",
+    "ATTITUDE": "the vehicle sends no attitude: check the link and the vehicle's stream rates",
+}
+_MISSING_HELP["ATTITUDE and LOCAL_POSITION_NED"] = _MISSING_HELP["ATTITUDE"]

@@ -1,0 +1,160 @@
+"""Every way a run can end early leaves the vehicle safe, or says plainly that it could not: signals, a limit
+crossed, a lost link; refusals before anything is touched; and a dry run that touches nothing."""
+
+from __future__ import annotations
+
+import csv
+import signal
+import threading
+import time
+
+import pytest
+from run_helpers import (WAIT, RunnerProcess, armed, assert_left_safe, bridge_with_checker, checker, free_port,
+                         servo_functions, servo_outputs, short_mission)
+from test_bridge_gcs import mavutil
+
+
+def _runner(bridge, mission, *args: str) -> RunnerProcess:
+    return RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--heartbeat-timeout", "60",
+                         *args)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):
+    mission = short_mission(tmp_path, goto_x=6.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
+    with _runner(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            run.wait_for("armed in MANUAL")
+            assert servo_functions(gcs) == list(range(51, 59))
+            assert servo_outputs(gcs) != [1500] * 8          # flying: passthrough PWMs off neutral
+            run.signal(signum)
+            assert run.wait() == 128 + signum, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert f"stopping: stopped by {signal.Signals(signum).name}" in run.output
+    assert "RC overrides on channels 1-8 released" in run.output
+
+
+def test_a_limit_crossed_aborts_and_restores(tmp_path):
+    mission = short_mission(tmp_path, limits="limits: {max_depth: 3.0}")
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
+    with _runner(bridge, mission, "--max-depth", "0.5") as run, bridge:    # the flag overrides the mission
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 1, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "limit crossed: depth" in run.output and "> max_depth 0.5 m" in run.output
+
+
+def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
+    mission = short_mission(tmp_path, goto_x=6.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
+    with bridge:
+        with _runner(bridge, mission) as run:
+            run.wait_for("armed in MANUAL")
+            time.sleep(0.5)
+            bridge.proc.send_signal(signal.SIGSTOP)                # the vehicle stops answering
+            try:
+                assert run.wait() == 1, run.output
+            finally:
+                bridge.proc.send_signal(signal.SIGCONT)
+        assert "link lost: no telemetry from the vehicle" in run.output
+        assert "THE LINK IS GONE" in run.output and "HOLD THEIR LAST COMMAND" in run.output
+        gcs = checker(checker_port)
+        try:
+            assert servo_functions(gcs) == list(range(51, 59))    # not restored: the runner said so
+            with _runner(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0)) as rerun:
+                assert rerun.wait() == 0, rerun.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "SERVO1_FUNCTION is already RCIN1 passthrough" in rerun.output
+
+
+def test_dry_run_changes_nothing_on_the_vehicle(tmp_path):
+    mission = short_mission(tmp_path, goto_x=2.0, hold=1.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
+    rc_seen: list[list[int]] = []
+    with _runner(bridge, mission, "--dry-run", "--log", str(tmp_path / "log")) as run, bridge:
+        gcs = checker(checker_port)
+        stop = threading.Event()
+
+        def watch_rc():
+            while not stop.is_set():
+                m = gcs.conn.recv_match(type="RC_CHANNELS", blocking=True, timeout=0.2)
+                if m is not None:
+                    rc_seen.append([getattr(m, f"chan{i}_raw") for i in range(1, 9)])
+
+        watcher = threading.Thread(target=watch_rc)
+        watcher.start()
+        try:
+            code = run.wait()
+            stop.set()
+            watcher.join(WAIT)
+            assert code == 0, run.output
+            assert not armed(gcs)
+            assert servo_functions(gcs) == list(range(33, 41))
+        finally:
+            stop.set()
+            gcs.close()
+    assert len(rc_seen) > 5 and all(row == [1500] * 8 for row in rc_seen)     # no override ever arrived
+    with open(tmp_path / "log" / "ticks.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert any(float(r["pwm_1"]) != 1500 for r in rows)    # ... though the law computed non-neutral commands
+    assert "dry run: no parameter changed, nothing armed, no override sent" in run.output
+
+
+def test_a_vehicle_armed_by_someone_else_is_refused(tmp_path):
+    mission = short_mission(tmp_path)
+    # no pilot-input failsafe, which would otherwise disarm the idle vehicle 3 s after the checker armed it
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--param", "FS_PILOT_INPUT=0")
+    with bridge:
+        gcs = checker(checker_port)
+        try:
+            assert gcs.command(mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == 0
+            with _runner(bridge, mission) as run:
+                assert run.wait() == 1, run.output
+            assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))
+        finally:
+            gcs.close()
+    assert "already armed by someone else" in run.output
+    assert "nothing had been changed on the vehicle" in run.output
+
+
+def _fake_vehicle(port: int, stop: threading.Event) -> None:
+    """An ArduPilot quadcopter's heartbeat, answering whoever writes to `port`."""
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=1, source_component=1)
+    try:
+        while not stop.is_set():
+            conn.recv_match(blocking=True, timeout=0.1)
+            if conn.clients:                                   # someone wrote to us: answer them
+                conn.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_QUADROTOR,
+                                        mavutil.mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 81, 0, 3)
+    finally:
+        conn.close()
+
+
+def test_a_vehicle_that_is_not_a_sub_is_refused(tmp_path):
+    port = free_port()
+    stop = threading.Event()
+    fake = threading.Thread(target=_fake_vehicle, args=(port, stop))
+    fake.start()
+    try:
+        with RunnerProcess("--target", f"udpout:127.0.0.1:{port}", str(short_mission(tmp_path))) as run:
+            assert run.wait() == 1, run.output
+    finally:
+        stop.set()
+        fake.join(WAIT)
+    assert "refusing to fly" in run.output and "MAV_TYPE_QUADROTOR" in run.output
+
+
+def test_no_vehicle_gives_a_clear_message(tmp_path):
+    with RunnerProcess("--target", f"udpout:127.0.0.1:{free_port()}", str(short_mission(tmp_path)),
+                       "--heartbeat-timeout", "1") as run:
+        assert run.wait() == 1, run.output
+    assert "no HEARTBEAT from a vehicle on udpout:127.0.0.1:" in run.output and "within 1 s" in run.output

@@ -1,0 +1,63 @@
+"""The runner's pieces without a link: the vehicle clock, the state decoder, the lead-in, the actuation limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rov_mav.actuation import Actuation
+from rov_mav.approach import approach
+from rov_mav.link import mavlink
+from rov_mav.thrusters import load_t200
+from rov_mav.vehicle_clock import VehicleClock
+from rov_mav.vehicle_state import StateDecoder
+
+
+def test_the_vehicle_clock_learns_the_speedup_and_extrapolates():
+    clock = VehicleClock()
+    for k in range(31):                       # a vehicle at 10x, stamps every 0.1 wall s
+        clock.observe(100.0 + k * 1.0, wall=k * 0.1)
+    assert clock.rate == pytest.approx(10.0)
+    assert clock.now(wall=3.5) == pytest.approx(135.0)       # 0.5 wall s of silence = 5 vehicle s
+    assert clock.wall_seconds(2.0) == pytest.approx(0.2)
+    clock.observe(129.5, wall=3.6)                            # a late, reordered stamp changes nothing
+    assert clock.last_vehicle == 130.0
+
+
+def test_the_state_is_in_the_body_frame_and_on_the_vehicle_clock():
+    decoder = StateDecoder()
+    yaw = math.pi / 2                                          # facing east
+    att = mavlink.MAVLink_attitude_message(2000, 0.0, 0.0, yaw, 0.01, 0.02, 0.03)
+    pos = mavlink.MAVLink_local_position_ned_message(2010, 1.0, 2.0, 3.0, 0.0, 0.5, 0.1)   # moving east
+    assert not decoder.update(att)
+    assert decoder.update(pos)
+    state = decoder.state(received=0.0)
+    assert state.t == pytest.approx(2.010)
+    np.testing.assert_allclose(state.eta, [1.0, 2.0, 3.0, 0.0, 0.0, yaw])
+    np.testing.assert_allclose(state.nu, [0.5, 0.0, 0.1, 0.01, 0.02, 0.03], atol=1e-12)   # surge forward
+    assert not decoder.update(pos)                             # a pair needs both messages again
+
+
+def test_the_lead_in_reaches_the_start_pose_smoothly_or_is_skipped():
+    start = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    assert approach(start + 0.01, start, 0.2) is None
+    eta = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 3.0])
+    lead = approach(eta, start, 0.2)
+    np.testing.assert_allclose(lead.reference(0.0)[:6], eta)
+    end = lead.reference(lead.duration)
+    np.testing.assert_allclose(end[:3], start[:3])
+    assert math.isclose(math.cos(end[5]), 1.0) and not end[6:].any()
+    assert lead.duration >= 3.0 / 0.2                          # turns no faster than 0.2 rad/s
+
+
+def test_actuation_caps_every_thruster_and_uses_the_battery_voltage(vehicle):
+    act = Actuation(vehicle, max_thrust=20.0, voltage=16.0)
+    thrusts, pwm, info = act.command(np.array([500.0, 0, 0, 0, 0, 0]))   # far beyond the vehicle
+    assert np.all(np.abs(thrusts) <= 20.0 + 1e-9) and info.saturated
+    np.testing.assert_allclose(pwm, np.round(load_t200().pwm(thrusts, 16.0)))
+    _, pwm_16v, _ = act.command(np.array([10.0, 0, 0, 0, 0, 0]))
+    act.set_voltage(12.0)
+    _, pwm_12v, _ = act.command(np.array([10.0, 0, 0, 0, 0, 0]))
+    assert np.any(np.abs(pwm_12v - 1500) > np.abs(pwm_16v - 1500))    # a weaker battery needs more PWM
