@@ -13,6 +13,8 @@ from rov_mav.config import ConfigError
 
 SUBCOMMAND_MODULES = (
     "rov_mav.commands.simulate",
+    "rov_mav.commands.tune",
+    "rov_mav.commands.run",
     "sim_bridge.cli",
 )
 

@@ -317,6 +317,7 @@ def _diverged(x):
 
 @compiled
 def _saturated(tau, tau_max):
+    """True when a commanded |tau_i| exceeds tau_max_i: the thrusters cannot deliver it."""
     for i in range(6):
         if abs(tau[i]) > tau_max[i]:
             return True

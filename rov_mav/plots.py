@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 from rov_mav.simulation import Trace  # noqa: E402
 
 DOF_LABELS = ("x (m)", "y (m)", "z (m)", "phi (rad)", "theta (rad)", "psi (rad)")
+ETA_NAMES = ("x", "y", "z", "phi", "theta", "psi")
 BODY_LABELS = ("u: X (N)", "v: Y (N)", "w: Z (N)", "p: K (N m)", "q: M (N m)", "r: N (N m)")
 
 
@@ -92,3 +93,27 @@ def plot_run(trace: Trace, label: str, out_dir: Path) -> list[Path]:
         plot_estimates(trace, f"{label}: disturbance estimate", out_dir / "estimates.png"),
         plot_rates(trace, f"{label}: adaptation rates", out_dir / "rates.png"),
     ]
+
+
+def plot_convergence(cost_history: np.ndarray, gain_history: np.ndarray, title: str, path: Path) -> Path:
+    """PSO convergence (the counterpart of Fig. IV-1): (i) best cost per iteration, (ii) the 12 gains per iteration."""
+    it = np.arange(1, len(cost_history) + 1)
+    fig, (ax_cost, ax_gain) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig.suptitle(title)
+    ax_cost.plot(it, cost_history, lw=1.4)
+    if cost_history.max() > 10 * cost_history.min() > 0:     # log scale only when it spans decades
+        ax_cost.set_yscale("log")
+    ax_cost.set_xlabel("iteration")
+    ax_cost.set_ylabel("best cost J (Eq. 2.32)")
+    ax_cost.set_title("(i) best cost")
+    ax_cost.grid(alpha=0.3, which="both")
+    colors = plt.get_cmap("tab10").colors
+    for i in range(6):
+        ax_gain.plot(it, gain_history[:, i], color=colors[i], lw=1.2, label=f"k1 {ETA_NAMES[i]}")
+        ax_gain.plot(it, gain_history[:, 6 + i], color=colors[i], lw=1.2, ls="--", label=f"k2 {ETA_NAMES[i]}")
+    ax_gain.set_xlabel("iteration")
+    ax_gain.set_ylabel("gain (1/s)")
+    ax_gain.set_title("(ii) best gains: k1 solid, k2 dashed")
+    ax_gain.legend(ncol=6, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14))
+    ax_gain.grid(alpha=0.3)
+    return _save(fig, path)
