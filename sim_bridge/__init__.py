@@ -1,1 +1,18 @@
-"""The built-in vehicle that speaks ArduSub MAVLink around the rov_mav 6-DOF model."""
+"""The built-in vehicle that speaks ArduSub MAVLink around the rov_mav 6-DOF model.
+
+Run it with `rov-mav sim-bridge` (see its --help), or embed it:
+
+    from sim_bridge.config import BridgeConfig
+    from sim_bridge.server import Bridge
+
+    bridge = Bridge(BridgeConfig(endpoints=("udpin:127.0.0.1:14551",), speedup=10))
+    bridge.start()            # a background thread; connect to udpout:127.0.0.1:14551
+    ...
+    bridge.stop()
+
+Modules, one concept each: params (ArduSub's parameter table), rc (RC input and overrides), mixer
+(vectored_6dof), ardusub (modes, arming, failsafes, output routing), stabilize (the assisted modes' holds),
+battery, physics (PWM -> T200 -> lag -> wrench -> plant), telemetry (message contents), schedule (message rates),
+protocol (answers to GCS messages), link (UDP/TCP transports), pacing (simulated vs wall clock), server (the
+loop), config, cli.
+"""

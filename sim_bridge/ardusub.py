@@ -8,7 +8,8 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 - SERVOn_FUNCTION 51..66 (RCIN1..16) passes RC input n straight to output n, whether armed or not, without motor
   directions; with no RC receiver the output keeps its last value after the override ends.
 - SERVOn_FUNCTION 33..40 (motors 1..8) come from the vectored_6dof mixer of the pilot channels, only when armed
-  (1500 us when disarmed).
+  (1500 us when disarmed); in STABILIZE, ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, on
+  the state estimate passed to `update`.
 - Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
   channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
 - GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
@@ -23,17 +24,17 @@ import numpy as np
 from sim_bridge import mixer
 from sim_bridge.params import Params
 from sim_bridge.rc import RCInput
+from sim_bridge.stabilize import ASSISTED, Holds
 
 MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRCLE": 7, "SURFACE": 9,
          "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
-MODE_NAMES = {v: k for k, v in MODES.items()}
 SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL")})
 GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 
 MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
 MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 3, 4, 5
 MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING = 2, 4
-FS_GCS_WARN, FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 1, 2, 3, 4
+FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 2, 3, 4        # 1: warn only
 FS_PILOT_DISARM = 2
 GCS_CHECK_PERIOD = 0.3          # s: ArduSub's 3.3 Hz loop
 GCS_WARN_PERIOD = 30.0          # s between "heartbeat lost" warnings
@@ -45,6 +46,7 @@ PILOT_CHANNEL_OF_AXIS = (1, 0, 3, 2, 4, 5)
 _RC_RANGE = [(f"RC{ch + 1}_MIN", f"RC{ch + 1}_TRIM", f"RC{ch + 1}_MAX") for ch in PILOT_CHANNEL_OF_AXIS]
 _MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, 9)]
 _SERVO_FUNCTION = [f"SERVO{n}_FUNCTION" for n in range(1, SERVOS + 1)]
+_NEUTRAL = np.full(8, 1500, dtype=np.int32)
 
 
 class ArduSub:
@@ -62,6 +64,11 @@ class ArduSub:
         self._pilot_seen = t
         self._next_gcs_check = t
         self._last_gcs_warn: float | None = None
+        self._routing_version = -1
+        self._mix_key: tuple | None = None
+        self.holds = Holds()
+        self._held: np.ndarray | None = None          # motor PWM from the assisted modes' holds, this pass
+        self._t = t
 
     # -- inputs ----------------------------------------------------------------------------------------------
 
@@ -81,6 +88,8 @@ class ArduSub:
 
     def arm(self, arm: bool) -> int:
         """MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT. Arming in MANUAL has no pre-arm failures (as on SITL)."""
+        if arm != self.armed:
+            self.holds.reset()
         self.armed = arm
         return MAV_RESULT_ACCEPTED
 
@@ -89,18 +98,27 @@ class ArduSub:
         if custom_mode not in SUPPORTED_MODES:
             self.texts.append((MAV_SEVERITY_WARNING, f"Flight mode change failed: {custom_mode}"))
             return False
+        if custom_mode != self.mode:
+            self.holds.reset()
         self.mode = custom_mode
         return True
 
     # -- time ------------------------------------------------------------------------------------------------
 
-    def update(self, t: float) -> None:
-        """One main-loop pass at time t: RC input, then the failsafes."""
+    def update(self, t: float, state: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """One main-loop pass at time t: RC input, the failsafes, then the assisted modes' holds on `state`, the
+        attitude and position estimate (eta, nu)."""
+        dt, self._t = t - self._t, t
         self.rc.update(t, self.params["RC_OVERRIDE_TIME"])
         self._pilot_input_check(t)
         if t >= self._next_gcs_check:
             self._next_gcs_check = t + GCS_CHECK_PERIOD
             self._gcs_check(t)
+        self._held = None
+        if self.armed and self.mode in ASSISTED and state is not None:
+            axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt)
+            self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), self.params["MOT_PWM_MIN"],
+                                      self.params["MOT_PWM_MAX"])
 
     def _pilot_input_check(self, t: float) -> None:
         if self.params["FS_PILOT_INPUT"] == 0:
@@ -150,22 +168,32 @@ class ArduSub:
     def motor_pwm(self) -> np.ndarray:
         """PWM (8,) of motors 1..8: the mixer when armed, neutral when disarmed."""
         if not self.armed:
-            return np.full(8, 1500, dtype=np.int32)
-        p = self.params
-        directions = np.array([p[name] for name in _MOTOR_DIRECTION])
-        outputs = mixer.mix(self.pilot_axes(), np.where(directions < 0, -1.0, 1.0))
-        return mixer.to_pwm(outputs, p["MOT_PWM_MIN"], p["MOT_PWM_MAX"])
+            return _NEUTRAL
+        if self._held is not None and self.mode in ASSISTED:
+            return self._held
+        key = (self.rc.radio_in[:6].tobytes(), self.params.version)
+        if key != self._mix_key:                 # the mixer only when the pilot channels or parameters changed
+            p = self.params
+            self._mixed = mixer.to_pwm(mixer.mix(self.pilot_axes(), self._directions()), p["MOT_PWM_MIN"],
+                                       p["MOT_PWM_MAX"])
+            self._mix_key = key
+        return self._mixed
+
+    def _directions(self) -> np.ndarray:
+        return np.array([-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION])
 
     def servo_outputs(self) -> np.ndarray:
         """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs)."""
-        motors = self.motor_pwm()
+        if self._routing_version != self.params.version:
+            functions = np.array([int(self.params[name]) for name in _SERVO_FUNCTION])
+            self._motor = (functions >= MOTOR1) & (functions <= MOTOR8)
+            self._rcin = (functions >= RCIN1) & (functions <= RCIN16)
+            self._motor_index = functions[self._motor] - MOTOR1
+            self._rcin_index = functions[self._rcin] - RCIN1
+            self._routing_version = self.params.version
         out = np.zeros(SERVOS, dtype=np.int32)
-        for n, name in enumerate(_SERVO_FUNCTION):
-            function = int(self.params[name])
-            if MOTOR1 <= function <= MOTOR8:
-                out[n] = motors[function - MOTOR1]
-            elif RCIN1 <= function <= RCIN16:
-                out[n] = self.rc.radio_in[function - RCIN1]
+        out[self._motor] = self.motor_pwm()[self._motor_index]
+        out[self._rcin] = self.rc.radio_in[self._rcin_index]
         return out
 
     # -- status ----------------------------------------------------------------------------------------------

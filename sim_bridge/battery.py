@@ -27,7 +27,7 @@ class Battery:
     @property
     def remaining(self) -> float:
         """State of charge, 0..1."""
-        return float(np.clip(1.0 - self.consumed_ah / self.capacity_ah, 0.0, 1.0))
+        return min(max(1.0 - self.consumed_ah / self.capacity_ah, 0.0), 1.0)
 
     def step(self, thruster_current: float, dt: float) -> None:
         """Draw `thruster_current` A (plus the electronics) for `dt` s."""

@@ -15,8 +15,9 @@ DESCRIPTION = """\
 A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a ground station (QGroundControl,
 MAVProxy), MAVSDK or `rov-mav run` can fly it as they would a real one or ArduSub SITL.
 
-What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD; others refused),
-arming and DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
+What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD, the assisted ones
+holding attitude, depth and position with simple loops of its own; other modes refused), arming and
+DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
 SET_MESSAGE_INTERVAL / REQUEST_MESSAGE / REQUEST_DATA_STREAM, RC_CHANNELS_OVERRIDE exactly as ArduSub treats it
 (only from the GCS sysid, expiry after RC_OVERRIDE_TIME), SERVOn_FUNCTION routing (33..40 motors through the
 vectored_6dof mixer when armed; 51..66 RCIN passthrough, NOT gated by arming and holding its last value when the
@@ -26,7 +27,8 @@ The vehicle is the project's 6-DOF model with T200 thrusters (PWM -> thrust at t
 
 Every timer (failsafes, override expiry, telemetry rates, time_boot_ms) runs on the simulated clock, which runs
 --speedup times faster than the wall clock: at --speedup 10, send heartbeats and overrides 10x as often.
-The simulation's own settings are parameters too: SIM_SPEEDUP (live), SIM_BATT_VOLTAGE, SIM_BATT_CAP_AH.
+The simulation's own settings are parameters too: SIM_SPEEDUP (changes the pace at once), SIM_BATT_VOLTAGE
+and SIM_BATT_CAP_AH (full-charge voltage and capacity, read at start: set them with --param).
 """
 
 EPILOG = """\
@@ -123,8 +125,6 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
         return 2
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: bridge.request_stop())
     try:
         bridge.open()
     except LinkError as exc:
@@ -132,7 +132,12 @@ def run(args: argparse.Namespace) -> int:
         return 1
     print(f"sim-bridge: ArduSub {args.firmware} ({bridge.vehicle.name}) on {', '.join(endpoints)}, "
           f"speedup {args.speedup:g}", flush=True)
-    bridge.run()
+    previous = {sig: signal.signal(sig, lambda *_: bridge.request_stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        bridge.run()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     s = bridge.pacer.summary(bridge.t)
     print(f"sim-bridge: stopped at t={s['sim_time']:.2f} s after {s['wall_time']:.2f} s wall "
           f"(speedup {s['speedup']:.3f}, {s['slips']} slips); step lateness ms: mean {s['late_mean_ms']:.3f} "

@@ -23,7 +23,7 @@ class BridgeConfig:
     environment: Environment | None = None
     vehicle_path: str | None = None
     origin: tuple[float, float, float] = DEFAULT_ORIGIN
-    start_depth: float = 0.0
+    start_depth: float = 0.0                          # m, at boot (level, heading north, at the origin)
     step: float = DEFAULT_STEP
     seed: int = 0
     params: dict[str, float] = field(default_factory=dict)

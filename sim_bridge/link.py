@@ -66,7 +66,6 @@ class Link:
         self.encoder = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
         self.peers: list[_Peer] = []
         self.udp_peer: tuple[str, int] | None = self.address if self.kind == "udpout" else None
-        self.sent = self.dropped = 0
         try:
             if self.kind == "tcpin":
                 self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -136,14 +135,12 @@ class Link:
                 peer.backlog += buf
                 self._flush(peer)
             return
-        if self.udp_peer is None:
-            self.dropped += 1
+        if self.udp_peer is None:       # udpin: nobody has written yet
             return
         try:
             self.sock.sendto(buf, self.udp_peer)
-            self.sent += 1
-        except OSError:
-            self.dropped += 1
+        except OSError:                  # a full socket buffer or an unreachable peer: the datagram is lost
+            pass
 
     def _flush(self, peer: _Peer) -> None:
         try:
@@ -154,7 +151,6 @@ class Link:
             self._drop(peer)
             return
         peer.backlog = peer.backlog[n:]
-        self.sent += 1
         if len(peer.backlog) > MAX_TCP_BACKLOG:
             self._drop(peer)
 

@@ -17,7 +17,7 @@ import numpy as np
 class Pacer:
     """Wall-clock schedule of a simulation stepping `h` s of simulated time per step, `speedup` x real time."""
 
-    def __init__(self, h: float, speedup: float, max_lag: float = 0.25, clock=time.perf_counter):
+    def __init__(self, h: float, speedup: float, max_lag: float = 1.0, clock=time.perf_counter):
         self.h = h
         self.max_lag = max_lag
         self.clock = clock

@@ -103,6 +103,7 @@ class Params:
         self.specs = _table(self.names)
         self._index = {s.name: i for i, s in enumerate(self.specs)}
         self._values = {s.name: float(s.default) for s in self.specs}
+        self.version = 0                     # counts changes, for readers that cache derived values
 
     def __len__(self) -> int:
         return len(self.specs)
@@ -122,6 +123,7 @@ class Params:
             return None
         stored = stored_value(value, self.specs[self._index[name]].ptype)
         self._values[name] = stored
+        self.version += 1
         return stored
 
     @property

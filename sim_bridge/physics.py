@@ -29,13 +29,20 @@ class Physics:
         self._lag = 1.0 if tc <= 0 else 1.0 - math.exp(-h / tc)
         self.thrusts = np.zeros(8)
         self.tau = np.zeros(6)
+        self._key: tuple | None = None
+        self._commanded = np.zeros(8)
+        self._current = 0.0
 
     def step(self, pwm: np.ndarray) -> None:
         """One step of h seconds with thruster PWMs (8,) in us held."""
-        pwm = np.where(pwm < NO_PULSE_BELOW, 1500, pwm)
         voltage = round(self.battery.voltage / VOLTAGE_RESOLUTION) * VOLTAGE_RESOLUTION
-        commanded = self.t200.thrust(pwm, voltage)
-        self.thrusts += (commanded - self.thrusts) * self._lag
+        key = (pwm.tobytes(), voltage)
+        if key != self._key:                    # the T200 map only when the PWMs or the voltage changed
+            self._key = key
+            pulses = np.where(pwm < NO_PULSE_BELOW, 1500, pwm)
+            self._commanded = self.t200.thrust(pulses, voltage)
+            self._current = float(np.sum(self.t200.current(pulses, voltage)))
+        self.thrusts += (self._commanded - self.thrusts) * self._lag
         self.tau = self.matrix @ self.thrusts
         self.plant.step(self.tau, self.h)
-        self.battery.step(float(np.sum(self.t200.current(pwm, voltage))), self.h)
+        self.battery.step(self._current, self.h)

@@ -6,6 +6,7 @@ every link (PARAM_VALUE after a PARAM_SET), False only back on the link the requ
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Callable
 
@@ -71,7 +72,9 @@ class Protocol:
     def _command(self, msg, scheduler: Scheduler, t: float) -> list[Reply]:
         replies: list[Reply] = []
         cmd = msg.command
-        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+        if not all(math.isfinite(p) for p in (msg.param1, msg.param2)):
+            result = MAV_RESULT_DENIED          # NaN or infinite where a mode, message id or interval belongs
+        elif cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
             if msg.param1 in (0.0, 1.0):
                 result = self.vehicle.arm(msg.param1 == 1.0)
             else:

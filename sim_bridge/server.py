@@ -43,9 +43,8 @@ class Bridge:
                 raise ValueError(f"unknown parameter {name}")
         self.vehicle = load_vehicle(config.vehicle_path)
         self.sub = ArduSub(self.params)
-        eta0 = np.zeros(6)
-        eta0[2] = config.start_depth
-        plant = Plant(self.vehicle, config.environment, eta0=eta0, seed=config.seed)
+        plant = Plant(self.vehicle, config.environment, eta0=np.array([0, 0, config.start_depth, 0, 0, 0.0]),
+                      seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
         self.physics = Physics(self.vehicle, plant, battery, load_t200(), config.step)
@@ -53,12 +52,15 @@ class Bridge:
         self.links: list[Link] = []
         self.schedulers: list[Scheduler] = []
         self.steps = 0
+        self._step_us = round(config.step * 1e6)
         self.servo = self.sub.servo_outputs()
+        self.estimate = plant.measured()          # (eta, nu) as the sensors give them now: the autopilot's view
         self.unix_start = time.time()
         self.pacer: Pacer | None = None
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
+        self.error: BaseException | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------------------
 
@@ -85,19 +87,27 @@ class Bridge:
     def start(self) -> None:
         """Open the links and run in a background thread."""
         self.open()
-        self._thread = threading.Thread(target=self._loop, name="sim-bridge", daemon=True)
+        self._thread = threading.Thread(target=self._run_thread, name="sim-bridge", daemon=True)
         self._thread.start()
+
+    def _run_thread(self) -> None:
+        try:
+            self._loop()
+        except BaseException as exc:          # kept for stop() to raise in the owner's thread
+            self.error = exc
 
     def request_stop(self) -> None:
         self._stop.set()
 
     def stop(self) -> None:
-        """Stop the background thread and close the links."""
+        """Stop the background thread and close the links; raises what the thread died of, if it did."""
         self.request_stop()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
         self.close()
+        if self.error is not None:
+            raise self.error
 
     # -- state -----------------------------------------------------------------------------------------------
 
@@ -114,10 +124,11 @@ class Bridge:
 
     def snapshot(self) -> telemetry.Snapshot:
         """What the telemetry reports now (measured state, with the environment's sensor noise)."""
-        eta, nu = self.physics.plant.measured()
+        eta, nu = self.estimate
         battery = self.physics.battery
         return telemetry.Snapshot(
-            t=self.t, eta=np.asarray(eta), nu=np.asarray(nu), servo=self.servo, rc_in=self.sub.rc.radio_in.copy(),
+            t_us=self.steps * self._step_us, eta=np.asarray(eta), nu=np.asarray(nu), servo=self.servo,
+            rc_in=self.sub.rc.radio_in.copy(),
             base_mode=self.sub.base_mode(), custom_mode=self.sub.mode, system_status=self.sub.system_status(),
             throttle=float(self.sub.pilot_axes()[3]) if self.sub.armed else 0.0,
             voltage=battery.voltage, current=battery.current, consumed_ah=battery.consumed_ah,
@@ -139,15 +150,17 @@ class Bridge:
                 self.pacer.set_speedup(speedup, self.t)
             while self.pacer.due(self.t):
                 self._step()
+                self._receive()      # as ArduSub reads its links every main-loop pass, also when catching up
             sockets = [s for link in self.links for s in link.sockets()]
             select.select(sockets, [], [], min(self.pacer.wait(self.t), MAX_IDLE))
 
     def _step(self) -> None:
-        self.sub.update(self.t)
+        self.sub.update(self.t, self.estimate)
         self.servo = self.sub.servo_outputs()
         with self._lock:
             self.physics.step(self.servo[:8])
             self.steps += 1
+        self.estimate = self.physics.plant.measured()
         t = self.t
         while self.sub.texts:
             severity, text = self.sub.texts.pop(0)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from rov_mav.dynamics import rotation
+
 ENCODER = mavlink.MAVLink(None)
 EARTH_RADIUS = 6378137.0                 # m
 SURFACE_PRESSURE = 101325.0              # Pa
@@ -22,6 +24,7 @@ SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR
            | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
            | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
            | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY)
+HEALTH = SENSORS | mavlink.MAV_SYS_STATUS_GEOFENCE   # no fence, and so no breach
 CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
                 | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
 
@@ -30,7 +33,7 @@ CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | mavlink.MAV_PROTOC
 class Snapshot:
     """What the telemetry reports at one instant. Arrays: eta, nu (6,), servo (16,), rc_in (18,)."""
 
-    t: float
+    t_us: int                            # simulated time since boot, microseconds (exact: steps x step)
     eta: np.ndarray
     nu: np.ndarray
     servo: np.ndarray
@@ -51,16 +54,10 @@ class Snapshot:
 
     @property
     def ms(self) -> int:
-        return int(self.t * 1000.0) & 0xFFFFFFFF
+        return (self.t_us // 1000) & 0xFFFFFFFF
 
     def ned_velocity(self) -> np.ndarray:
-        phi, theta, psi = self.eta[3:6]
-        cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
-                                  math.cos(psi), math.sin(psi))
-        R = np.array([[cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
-                      [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
-                      [-st, ct * sf, ct * cf]])
-        return R @ self.nu[:3]
+        return rotation(self.eta) @ self.nu[:3]
 
 
 def quaternion(phi: float, theta: float, psi: float) -> tuple[float, float, float, float]:
@@ -120,7 +117,7 @@ def vfr_hud(s: Snapshot):
 
 
 def servo_output_raw(s: Snapshot):
-    return ENCODER.servo_output_raw_encode(int(s.t * 1e6) & 0xFFFFFFFF, 0, *map(int, s.servo))
+    return ENCODER.servo_output_raw_encode(s.t_us & 0xFFFFFFFF, 0, *map(int, s.servo))
 
 
 def rc_channels(s: Snapshot):
@@ -128,7 +125,7 @@ def rc_channels(s: Snapshot):
 
 
 def sys_status(s: Snapshot):
-    return ENCODER.sys_status_encode(SENSORS, SENSORS, SENSORS, 0, round(s.voltage * 1000), round(s.current * 100),
+    return ENCODER.sys_status_encode(SENSORS, SENSORS, HEALTH, 0, round(s.voltage * 1000), round(s.current * 100),
                                      round(s.remaining * 100), 0, 0, 0, 0, 0, 0)
 
 
@@ -140,7 +137,7 @@ def battery_status(s: Snapshot):
 
 
 def system_time(s: Snapshot):
-    return ENCODER.system_time_encode(int((s.unix_start + s.t) * 1e6), s.ms)
+    return ENCODER.system_time_encode(int(s.unix_start * 1e6) + s.t_us, s.ms)
 
 
 def autopilot_version(s: Snapshot):
@@ -152,7 +149,7 @@ def autopilot_version(s: Snapshot):
 def home_position(s: Snapshot):
     lat0, lon0, alt0 = s.origin
     return ENCODER.home_position_encode(round(lat0 * 1e7), round(lon0 * 1e7), round(alt0 * 1000), 0.0, 0.0, 0.0,
-                                        [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(s.t * 1e6))
+                                        [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, s.t_us)
 
 
 BUILDERS = {

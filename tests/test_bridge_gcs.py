@@ -21,6 +21,7 @@ mavutil.set_dialect("ardupilotmega")   # MAVLink 2 even if another test imported
 
 ROV_MAV = str(Path(sys.executable).with_name("rov-mav"))
 WAIT = 20.0            # s of wall time allowed for anything that should take a fraction of it
+RETRY = 1.0            # s of wall time before a request is sent again
 
 
 def free_port(kind: int = socket.SOCK_DGRAM) -> int:
@@ -28,6 +29,25 @@ def free_port(kind: int = socket.SOCK_DGRAM) -> int:
     with socket.socket(socket.AF_INET, kind) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+class BridgeThread:
+    """The bridge in-process (the embedded API), on a free udpin port; the same `port` as BridgeProcess."""
+
+    def __init__(self, speedup: float = 10.0, **config):
+        from sim_bridge.config import BridgeConfig
+        from sim_bridge.server import Bridge
+
+        self.port = free_port()
+        self.speedup = speedup
+        self.bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{self.port}",), speedup=speedup, **config))
+
+    def __enter__(self) -> "BridgeThread":
+        self.bridge.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.bridge.stop()
 
 
 class BridgeProcess:
@@ -58,8 +78,10 @@ class BridgeProcess:
             self.proc.wait()
             raise
 
-    def __exit__(self, *exc) -> None:
-        self.stop()
+    def __exit__(self, exc_type, *exc) -> None:
+        code = self.stop()
+        if exc_type is None:
+            assert code == 0 and "sim-bridge: stopped at" in self.output, self.output
 
     @property
     def output(self) -> str:
@@ -98,19 +120,36 @@ class Gcs:
         values += [0] * (18 - len(values))
         self.send("rc_channels_override", 1, 1, *values)
 
+    def request(self, send, kind: str, cond, timeout: float = WAIT):
+        """`send()` until a `kind` message satisfying `cond` answers, resending every second as ground stations do.
+
+        Whatever was already queued is dropped first: an idle ground station's socket buffer fills with telemetry
+        at 10x, and the kernel then drops the answer."""
+        self.drop_queued()
+        deadline = time.monotonic() + timeout
+        while True:
+            send()
+            try:
+                return self.recv(kind, min(RETRY, deadline - time.monotonic()), cond)
+            except AssertionError:
+                if time.monotonic() + 0.01 >= deadline:
+                    raise AssertionError(f"no {kind} answer within {timeout} s") from None
+
     def command(self, command: int, *params: float, timeout: float = WAIT):
         """COMMAND_LONG and its COMMAND_ACK."""
         p = list(params) + [0.0] * (7 - len(params))
-        self.send("command_long", 1, 1, command, 0, *p)
-        return self.recv("COMMAND_ACK", timeout, lambda m: m.command == command)
+        return self.request(lambda: self.send("command_long", 1, 1, command, 0, *p), "COMMAND_ACK",
+                            lambda m: m.command == command, timeout)
 
     def set_param(self, name: str, value: float, ptype: int = mavutil.mavlink.MAV_PARAM_TYPE_REAL32):
-        self.send("param_set", 1, 1, name.encode(), value, ptype)
-        return self.recv("PARAM_VALUE", WAIT, lambda m: m.param_id == name)
+        """PARAM_SET and the vehicle's echo of it (index 65535)."""
+        return self.request(lambda: self.send("param_set", 1, 1, name.encode(), value, ptype), "PARAM_VALUE",
+                            lambda m: m.param_id == name and m.param_index == 65535)
 
     def get_param(self, name: str):
-        self.send("param_request_read", 1, 1, name.encode(), -1)
-        return self.recv("PARAM_VALUE", WAIT, lambda m: m.param_id == name)
+        """PARAM_REQUEST_READ and its answer (which has the parameter's index; a PARAM_SET's echo has 65535)."""
+        return self.request(lambda: self.send("param_request_read", 1, 1, name.encode(), -1), "PARAM_VALUE",
+                            lambda m: m.param_id == name and m.param_index != 65535)
 
     def set_interval(self, msg_id: int, hz: float):
         return self.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz)
@@ -150,6 +189,18 @@ class Gcs:
     def sim_time(self) -> float:
         """The vehicle's simulated time (s) from its next ATTITUDE."""
         return self.recv("ATTITUDE").time_boot_ms / 1000.0
+
+    def drop_queued(self) -> list:
+        """Drop (and return) every message already received and not yet read."""
+        dropped = []
+        while (m := self.conn.recv_match(blocking=False)) is not None:
+            dropped.append(m)
+        return dropped
+
+    def sim_time_now(self) -> float:
+        """The vehicle's simulated time (s) now: the newest ATTITUDE after dropping everything already queued."""
+        times = [m.time_boot_ms / 1000.0 for m in self.drop_queued() if m.get_type() == "ATTITUDE"]
+        return times[-1] if times else self.sim_time()
 
     # -- background pump -------------------------------------------------------------------------------------
 

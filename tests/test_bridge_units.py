@@ -308,6 +308,9 @@ def test_protocol_commands_and_acks(protocol):
     [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 511, 0, 9999, 1000, 0, 0, 0, 0, 0)), 0,
                               scheduler, 0)
     assert ack.result == mavlink.MAV_RESULT_DENIED
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, math.nan, 19, 0, 0, 0, 0, 0)), 0,
+                              scheduler, 0)
+    assert ack.result == mavlink.MAV_RESULT_DENIED and sub.mode == 2
     assert proto.handle(decode(GCS.command_long_encode(2, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0) == []
     assert sub.armed                                            # addressed to system 2: not for us
 
