@@ -3,8 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
+# Rerun sink for `make run`: spawn a viewer when a display is present, else record a file.
+RERUN ?= $(if $(DISPLAY)$(WAYLAND_DISPLAY),spawn,save:out/square/run.rrd)
+ARGS ?=
 
-.PHONY: setup run test bench reproduce clean
+.PHONY: setup run test bench bench-tune reproduce clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,13 +18,19 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 run: setup
-	$(BIN)/rov-mav simulate missions/square.yaml --out out/square
+	$(BIN)/rov-mav run missions/square.yaml --metrics out/square/metrics.json --log out/square/log \
+		--rerun $(RERUN) $(ARGS)
 
 test: setup
 	$(BIN)/python -m pytest -q
 
 bench: setup
 	$(BIN)/python tools/bench_simulation.py
+	$(BIN)/python tools/bench_telemetry.py
+
+bench-tune: setup
+	$(BIN)/python -m pip install --quiet -e ".[bench]"
+	$(BIN)/python tools/bench_tune.py
 
 reproduce: setup
 	$(BIN)/python tools/reproduce_report.py

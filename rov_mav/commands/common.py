@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-import rerun as rr
-
-from rov_mav import telemetry
 from rov_mav.controller import SCHEDULES, ControllerSettings, load_settings
-from rov_mav.mission import Mission
-from rov_mav.vehicle import Vehicle
+
+if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
+    import numpy as np
+    import rerun as rr
+
+    from rov_mav import telemetry
+    from rov_mav.mission import Mission
+    from rov_mav.vehicle import Vehicle
 
 
 def six_floats(text: str) -> list[float]:
@@ -46,6 +49,8 @@ def controller_settings(args: argparse.Namespace) -> ControllerSettings:
 
 
 def _rerun_target(text: str) -> telemetry.RerunTarget:
+    from rov_mav import telemetry
+
     try:
         return telemetry.parse_target(text)
     except ValueError as exc:
@@ -55,7 +60,7 @@ def _rerun_target(text: str) -> telemetry.RerunTarget:
 def add_rerun_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rerun", type=_rerun_target, metavar="spawn|connect[:URL]|save:FILE.rrd|off",
                         help="live telemetry in the Rerun viewer: spawn a viewer (the default with a display), "
-                             f"connect to a running one (default {telemetry.target.DEFAULT_URL}, e.g. "
+                             "connect to a running one (default: Rerun's local viewer port, e.g. "
                              "`rerun --serve-grpc`), save a recording (the default without a display), or off")
 
 
@@ -63,6 +68,8 @@ def rerun_recording(args: argparse.Namespace, default_file: str | Path, referenc
                     ) -> tuple[telemetry.RerunTarget, rr.RecordingStream | None]:
     """The --rerun target (default: spawn with a display, else save to `default_file`) and its open recording,
     whose default layout frames `reference_path` (M, 3). Without a viewer to stream to, it saves instead."""
+    from rov_mav import telemetry
+
     target = args.rerun or telemetry.default_target(default_file)
     blueprint = telemetry.default_blueprint(reference_path)
     try:
@@ -76,6 +83,8 @@ def rerun_recording(args: argparse.Namespace, default_file: str | Path, referenc
 def rerun_sink(args: argparse.Namespace, vehicle: Vehicle, mission: Mission, default_file: str | Path
                ) -> tuple[telemetry.RerunTarget, telemetry.RerunSink | None]:
     """The --rerun target and a runner sink streaming to it (None when off); print `target.describe()` after."""
+    from rov_mav import telemetry
+
     path = mission.sampled_reference(0.1)[:, :3]
     target, rec = rerun_recording(args, default_file, path)
     return target, None if rec is None else telemetry.RerunSink(rec, vehicle, path)

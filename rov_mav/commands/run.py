@@ -8,16 +8,7 @@ import socket
 import sys
 from pathlib import Path
 
-from rov_mav.actuation import Actuation
 from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_sink
-from rov_mav.controller import Controller
-from rov_mav.link import LinkError, Session
-from rov_mav.metrics import run_metrics
-from rov_mav.mission import load_mission
-from rov_mav.runlog import RunLog
-from rov_mav.runner import Limits, RunOptions, Runner
-from rov_mav.status import StatusLine
-from rov_mav.vehicle import load_vehicle
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -114,6 +105,7 @@ def _free_udp_port() -> int:
 
 def _start_bridge(mission, speedup: float):
     """The built-in vehicle in a background thread; returns (bridge, connection string for it)."""
+    from rov_mav.link import LinkError
     from sim_bridge.config import BridgeConfig
     from sim_bridge.link import LinkError as BridgeLinkError
     from sim_bridge.server import Bridge
@@ -131,6 +123,17 @@ def _start_bridge(mission, speedup: float):
 
 
 def main(args: argparse.Namespace) -> int:
+    # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
+    from rov_mav.actuation import Actuation
+    from rov_mav.controller import Controller
+    from rov_mav.link import LinkError, Session
+    from rov_mav.metrics import run_metrics
+    from rov_mav.mission import load_mission
+    from rov_mav.runlog import RunLog
+    from rov_mav.runner import Limits, RunOptions, Runner
+    from rov_mav.status import StatusLine
+    from rov_mav.vehicle import load_vehicle
+
     mission = load_mission(args.mission)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)

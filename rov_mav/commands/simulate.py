@@ -6,13 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from rov_mav import telemetry
 from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_recording
-from rov_mav.metrics import run_metrics
-from rov_mav.mission import load_mission
-from rov_mav.plots import plot_run
-from rov_mav.simulation import simulate
-from rov_mav.vehicle import load_vehicle
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,6 +29,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
+    from rov_mav import telemetry
+    from rov_mav.metrics import run_metrics
+    from rov_mav.mission import load_mission
+    from rov_mav.plots import plot_run
+    from rov_mav.simulation import simulate
+    from rov_mav.vehicle import load_vehicle
+
     mission = load_mission(args.mission)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)

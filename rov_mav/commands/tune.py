@@ -17,7 +17,6 @@ from rov_mav.commands.common import add_controller_options, controller_settings
 from rov_mav.controller import ControllerSettings
 from rov_mav.metrics import run_metrics
 from rov_mav.mission import Mission, load_mission
-from rov_mav.plots import plot_convergence
 from rov_mav.scenarios import load_scenarios, nominal
 from rov_mav.simulation import simulate
 from rov_mav.vehicle import Vehicle, load_vehicle
@@ -145,6 +144,8 @@ def main(args: argparse.Namespace) -> int:
                             f"{options.particles} particles x {options.iterations} iterations, seed {args.seed}, "
                             f"w {options.w}, c1 {options.c1}, c2 {options.c2}")
     plot_dir.mkdir(parents=True, exist_ok=True)
+    from rov_mav.plots import plot_convergence   # matplotlib loads only when a figure is drawn
+
     figure = plot_convergence(result.cost_history, result.position_history,
                               f"PSO on {mission.name} ({args.cost} cost)", plot_dir / "convergence.png")
     comparison = {"objective": {"cost": args.cost, "aggregate": args.aggregate,
