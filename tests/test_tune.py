@@ -6,7 +6,9 @@ import dataclasses
 import json
 
 import numpy as np
+import pyarrow as pa
 import pytest
+from rerun.chunk import RrdReader
 
 from rov_mav import cli, config, kernel, pso, tuning
 from rov_mav.controller import load_settings
@@ -203,6 +205,13 @@ def test_tune_command_writes_gains_that_simulate_accepts_and_reproduce_the_cost(
                      "--out", str(tmp_path / "sim"), "--metrics", str(metrics)]) == 0
     simulated = json.loads(metrics.read_text())
     assert simulated["rms_position_error_m"] == pytest.approx(comparison["tuned"]["rms_position_error_m"], rel=1e-12)
+    # the Rerun recording (no display in tests: saved beside the figure) holds the convergence per iteration
+    chunks = RrdReader(gains.parent / "tune.rrd").stream().filter(content="/tuning/best_cost", is_static=False,
+                                                                    components="Scalars:scalars").to_chunks()
+    batch = pa.concat_tables([pa.Table.from_batches([c.to_record_batch()]) for c in chunks])
+    order = np.argsort(batch.column("pso_iteration").to_numpy())
+    logged = [v[0] for v in np.array(batch.column("Scalars:scalars").to_pylist(), dtype=object)[order]]
+    np.testing.assert_allclose(logged, comparison["best_cost_per_iteration"], rtol=1e-12)
 
 
 def test_tune_command_reports_a_bad_bounds_file_in_one_line(tmp_path, capsys):

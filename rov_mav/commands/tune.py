@@ -13,12 +13,12 @@ import yaml
 from tqdm import tqdm
 
 from rov_mav import pso, tuning
-from rov_mav.commands.common import add_controller_options, controller_settings
+from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_recording
 from rov_mav.controller import ControllerSettings
 from rov_mav.metrics import run_metrics
 from rov_mav.mission import Mission, load_mission
 from rov_mav.scenarios import load_scenarios, nominal
-from rov_mav.simulation import simulate
+from rov_mav.simulation import Trace, simulate
 from rov_mav.vehicle import Vehicle, load_vehicle
 
 DEFAULT_BOUNDS = (0.1, 10.0)   # ERRATA: the report's optimum spans 0.8-10
@@ -88,6 +88,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     o.add_argument("--out", metavar="FILE", help="gains YAML to write (default out/tune-MISSION/gains.yaml)")
     o.add_argument("--plot", metavar="DIR",
                    help="folder for convergence.png and comparison.json (default: the folder of --out)")
+    add_rerun_option(p)
     p.set_defaults(func=main)
 
 
@@ -153,21 +154,38 @@ def main(args: argparse.Namespace) -> int:
                                 "start": float(objective[0]), "tuned": float(objective[1])},
                   "best_cost_per_iteration": result.cost_history.tolist(),
                   "elapsed_s": elapsed}
+    traces = {}
     for label, settings in (("start", start), ("tuned", tuned)):
-        comparison[label] = _on_the_mission(mission, settings, model, problem, args.duration)
+        comparison[label], traces[label] = _on_the_mission(mission, settings, model, problem, args.duration)
     (plot_dir / "comparison.json").write_text(json.dumps(comparison, indent=2) + "\n")
     _print_summary(comparison, result, elapsed, out, figure)
+    _log_to_rerun(args, plot_dir / "tune.rrd", result, traces["tuned"], model, mission)
     return 0
 
 
+def _log_to_rerun(args: argparse.Namespace, default_file: Path, result: pso.PSOResult, trace, model: Vehicle,
+                  mission: Mission) -> None:
+    """The convergence (timeline pso_iteration) and the tuned gains' run on the mission (vehicle_time)."""
+    from rov_mav import telemetry
+
+    target, recording = rerun_recording(args, default_file, trace.reference[:, :3], tuning=True)
+    delivered = True
+    if recording is not None:
+        telemetry.send_convergence(recording, result.cost_history, result.position_history)
+        telemetry.log_trace(recording, trace, model, telemetry.mission_events(mission, trace))
+        delivered = telemetry.finish(recording)
+    print(f"  rerun: {target.describe(delivered)}")
+
+
 def _on_the_mission(mission: Mission, settings: ControllerSettings, model: Vehicle, problem: tuning.TuningProblem,
-                    duration: float | None) -> dict:
-    """The gains, the metrics JSON of `simulate` and the cost of one recorded run on the mission as written."""
+                    duration: float | None) -> tuple[dict, Trace]:
+    """The gains, the metrics JSON of `simulate` and the cost of one recorded run on the mission as written,
+    and that run."""
     trace = simulate(mission, settings, model, duration=duration)
     metrics = run_metrics(mission.name, settings.kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau,
                           trace.tau_hat, trace.true_disturbance, trace.completed)
     return {"k1": settings.k1.tolist(), "k2": settings.k2.tolist(),
-            "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}
+            "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}, trace
 
 
 def _print_summary(comparison: dict, result: pso.PSOResult, elapsed: float, out: Path, figure: Path) -> None:

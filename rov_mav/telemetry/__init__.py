@@ -2,7 +2,7 @@
 goes (`target`), the runner's non-blocking sink (`live`) and whole offline runs (`trace`)."""
 
 from rov_mav.telemetry.blueprint import default_blueprint
-from rov_mav.telemetry.entities import TIMELINE, TickColumns
+from rov_mav.telemetry.entities import TIMELINE, TickColumns, send_convergence
 from rov_mav.telemetry.live import RerunSink, SinkStats
 from rov_mav.telemetry.target import (RerunTarget, ViewerUnavailable, default_target, finish, open_recording,
                                      parse_target)
@@ -10,4 +10,4 @@ from rov_mav.telemetry.trace import log_trace, mission_events, trace_columns
 
 __all__ = ["TIMELINE", "RerunSink", "RerunTarget", "SinkStats", "TickColumns", "ViewerUnavailable", "default_blueprint",
            "default_target", "finish", "log_trace", "mission_events", "open_recording", "parse_target",
-           "trace_columns"]
+           "send_convergence", "trace_columns"]

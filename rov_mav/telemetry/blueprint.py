@@ -22,8 +22,10 @@ def _eye(path: np.ndarray) -> rrb.EyeControls3D:
                              eye_up=[0.0, 0.0, -1.0])
 
 
-def default_blueprint(reference_path: np.ndarray | None = None) -> rrb.Blueprint:
-    """3D view and events | tabs: tracking, pose, control, thrusters, link. The camera frames `reference_path`."""
+def default_blueprint(reference_path: np.ndarray | None = None, tuning: bool = False) -> rrb.Blueprint:
+    """3D view and events | tabs: tracking, pose, control, thrusters, link (and PSO convergence first, for `tune`).
+
+    The camera frames `reference_path`."""
     whole_run = rrb.VisibleTimeRanges(rrb.VisibleTimeRange(
         e.TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()))
     scene = rrb.Spatial3DView(origin="world", name="Vehicle (NED)", overrides={e.TRAIL: whole_run},
@@ -46,10 +48,14 @@ def default_blueprint(reference_path: np.ndarray | None = None) -> rrb.Blueprint
     thrusters = rrb.Vertical(_plot(e.THRUST, "Thrust (N)"), _plot(e.PWM, "PWM (us)"), name="Thrusters")
     link = rrb.Vertical(_plot(e.LINK, "Link"), _plot(e.BATTERY, "Battery (V)"),
                         _plot(e.PROGRESS, "Mission progress (%)"), name="Link")
+    tabs = [tracking, pose, control, thrusters, link]
+    if tuning:
+        tabs.insert(0, rrb.Vertical(_plot(e.BEST_COST, "Best cost"), _plot(e.BEST_K1, "Best k1"),
+                                    _plot(e.BEST_K2, "Best k2"), name=f"PSO (timeline {e.PSO_TIMELINE})"))
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(scene, rrb.TextLogView(origin=e.EVENTS, name="Events"), row_shares=[4, 1]),
-            rrb.Tabs(tracking, pose, control, thrusters, link, active_tab=0),
+            rrb.Tabs(*tabs, active_tab=0),
             column_shares=[3, 2]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),

@@ -19,6 +19,9 @@ Everything is on the `vehicle_time` timeline (s since the mission started), worl
     battery                    voltage (V)
     mission/progress           % of the planned duration
     events                     text log: mode changes, arming, watchdog and limit events, aborts
+`rov-mav tune` adds, on the `pso_iteration` timeline:
+    tuning/best_cost           best cost after each iteration (the counterpart of Fig. IV-1 (i))
+    tuning/k1, tuning/k2       the best particle's gains after each iteration (Fig. IV-1 (ii))
 """
 
 from __future__ import annotations
@@ -48,6 +51,8 @@ THRUST, PWM = "thrusters/thrust", "thrusters/pwm"
 LINK, BATTERY, PROGRESS, EVENTS = "link", "battery", "mission/progress", "events"
 VEHICLE, HULL, ARROWS = "world/vehicle", "world/vehicle/hull", "world/vehicle/thrust"
 REFERENCE_PATH, REFERENCE_NOW, TRAIL = "world/reference/path", "world/reference/now", "world/trail"
+PSO_TIMELINE = "pso_iteration"
+BEST_COST, BEST_K1, BEST_K2 = "tuning/best_cost", "tuning/k1", "tuning/k2"
 
 RED, GREEN, BLUE = (230, 75, 60), (80, 190, 80), (70, 130, 240)
 HULL_COLOR = (40, 110, 220, 150)
@@ -184,3 +189,15 @@ def send_events(rec: rr.RecordingStream, events: Sequence[tuple[float, str, str]
     levels = ["WARN" if lv.upper() == "WARNING" else lv.upper() for lv in level]
     rec.send_columns(EVENTS, indexes=[rr.TimeColumn(TIMELINE, duration=np.array(t, dtype=float))],
                      columns=rr.TextLog.columns(text=list(text), level=levels))
+
+
+def send_convergence(rec: rr.RecordingStream, cost_history: np.ndarray, gain_history: np.ndarray) -> None:
+    """PSO convergence on the `pso_iteration` timeline: best cost (I,) and the best gains (I, 12) per iteration."""
+    index = [rr.TimeColumn(PSO_TIMELINE, sequence=np.arange(1, len(cost_history) + 1))]
+    rec.log(BEST_COST, rr.SeriesLines(names=["best cost"]), static=True)
+    rec.send_columns(BEST_COST, indexes=index, columns=rr.Scalars.columns(scalars=np.asarray(cost_history, float)))
+    for path, part in ((BEST_K1, slice(0, 6)), (BEST_K2, slice(6, 12))):
+        values = np.asarray(gain_history, float)[:, part]
+        rec.log(path, rr.SeriesLines(names=list(DOFS), colors=PALETTE[:6]), static=True)
+        rec.send_columns(path, indexes=index,
+                         columns=rr.Scalars.columns(scalars=values.ravel()).partition(np.full(len(values), 6)))
