@@ -6,6 +6,7 @@ import argparse
 import signal
 import sys
 
+from rov_mav.commands.common import positive_float
 from rov_mav.environment import load_environment
 from sim_bridge.link import LinkError, parse_endpoint
 from sim_bridge.params import DEFAULT_FIRMWARE, FIRMWARES
@@ -51,16 +52,6 @@ def _endpoint(kinds: tuple[str, ...]):
     return parse
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text}: expected a positive number")
-    return value
-
-
 def _origin(text: str) -> tuple[float, float, float]:
     try:
         values = [float(v) for v in text.split(",")]
@@ -90,7 +81,7 @@ def register(subparsers) -> None:
                    metavar="udpin|tcpin:HOST:PORT",
                    help="wait on HOST:PORT and answer whoever writes (udpin: the last sender; tcpin: every "
                         "connected client); repeatable, several links at once")
-    p.add_argument("--speedup", type=_positive, default=1.0, metavar="N",
+    p.add_argument("--speedup", type=positive_float, default=1.0, metavar="N",
                    help="simulated time runs N times faster than the wall clock (default 1: real time)")
     p.add_argument("--environment", metavar="FILE",
                    help="disturbance, current and sensor noise: a mission file's environment: block, or a file "
@@ -104,7 +95,7 @@ def register(subparsers) -> None:
                         "(default %s,%s,%s)" % DEFAULT_ORIGIN)
     p.add_argument("--start-depth", type=float, default=0.0, metavar="M",
                    help="depth in m at boot (default 0: at the surface; the model has no free surface)")
-    p.add_argument("--step", type=_positive, default=DEFAULT_STEP, metavar="S",
+    p.add_argument("--step", type=positive_float, default=DEFAULT_STEP, metavar="S",
                    help="fixed physics and main-loop step in simulated seconds (default %(default)s: 400 Hz)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",

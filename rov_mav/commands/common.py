@@ -18,6 +18,17 @@ if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording 
     from rov_mav.vehicle import Vehicle
 
 
+def positive_float(text: str) -> float:
+    """Parse a number > 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text}: expected a positive number")
+    return value
+
+
 def six_floats(text: str) -> list[float]:
     """Parse 'a,b,c,d,e,f' into six floats (argparse type)."""
     try:

@@ -8,7 +8,8 @@ import socket
 import sys
 from pathlib import Path
 
-from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_sink
+from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
+                                     rerun_sink)
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -41,16 +42,6 @@ exit status: 0 mission complete; 1 aborted (the reason is printed); 2 bad argume
 """
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text}: expected a positive number")
-    return value
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)",
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -60,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "tcp:HOST:PORT (ArduSub SITL: tcp:127.0.0.1:5760), or a serial device (see --baud); "
                         "default: start the built-in simulated vehicle in this process")
     add_controller_options(p)
-    p.add_argument("--rate", type=_positive, default=50.0, metavar="HZ",
+    p.add_argument("--rate", type=positive_float, default=50.0, metavar="HZ",
                    help="control rate in Hz of vehicle time: telemetry asked for and overrides sent (default 50)")
     p.add_argument("--output", choices=["thrusters"], default="thrusters",
                    help="how commands reach the vehicle: per-thruster PWMs through RCIN passthrough (default)")
@@ -74,24 +65,24 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write ticks.csv (state, reference, commands, controller internals), events.csv and the "
                         "raw MAVLink traffic (mavlink.tlog) to DIR")
     limits = p.add_argument_group("limits (default: the mission's `limits:` block)")
-    limits.add_argument("--max-depth", type=_positive, metavar="M", help="abort below this depth")
-    limits.add_argument("--max-tracking-error", type=_positive, metavar="M",
+    limits.add_argument("--max-depth", type=positive_float, metavar="M", help="abort below this depth")
+    limits.add_argument("--max-tracking-error", type=positive_float, metavar="M",
                         help="abort when the position error exceeds this")
-    limits.add_argument("--max-thrust", type=_positive, metavar="N",
+    limits.add_argument("--max-thrust", type=positive_float, metavar="N",
                         help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
     link = p.add_argument_group("link")
     link.add_argument("--sysid", type=int, metavar="ID",
                       help="our MAVLink system id (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255)")
     link.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
-    link.add_argument("--heartbeat-timeout", type=_positive, default=15.0, metavar="S",
+    link.add_argument("--heartbeat-timeout", type=positive_float, default=15.0, metavar="S",
                       help="wall seconds to wait for the vehicle's heartbeat (default 15)")
-    link.add_argument("--position-timeout", type=_positive, default=90.0, metavar="S",
+    link.add_argument("--position-timeout", type=positive_float, default=90.0, metavar="S",
                       help="wall seconds to wait for LOCAL_POSITION_NED (default 90)")
-    link.add_argument("--link-timeout", type=_positive, default=2.0, metavar="S",
+    link.add_argument("--link-timeout", type=positive_float, default=2.0, metavar="S",
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
-    p.add_argument("--approach-speed", type=_positive, default=0.2, metavar="M/S",
+    p.add_argument("--approach-speed", type=positive_float, default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
-    p.add_argument("--speedup", type=_positive, default=1.0, metavar="N",
+    p.add_argument("--speedup", type=positive_float, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_rerun_option(p)
     p.set_defaults(func=main)

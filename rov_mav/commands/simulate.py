@@ -6,7 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
-from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_recording
+from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
+                                     rerun_recording)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plant-params", metavar="FILE",
                    help="vehicle YAML for the simulated plant when it differs from the controller's model "
                         "(mismatch studies); default: the controller's model")
-    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds (default: the mission's)")
+    p.add_argument("--duration", type=positive_float, metavar="S", help="simulated seconds (default: the mission's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--out", metavar="DIR", help="folder for the figures (default: out/simulate-MISSION-CONTROLLER)")
     p.add_argument("--metrics", metavar="FILE", help="write the metrics JSON here (default: DIR/metrics.json)")
@@ -41,8 +42,6 @@ def main(args: argparse.Namespace) -> int:
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model
-    if args.duration is not None and args.duration <= 0:
-        raise SystemExit("rov-mav simulate: error: --duration must be positive")
     out_dir = Path(args.out or f"out/simulate-{mission.name}-{settings.kind}")
     trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed)
     metrics = run_metrics(mission.name, settings.kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau,

@@ -13,7 +13,8 @@ import yaml
 from tqdm import tqdm
 
 from rov_mav import pso, tuning
-from rov_mav.commands.common import add_controller_options, add_rerun_option, controller_settings, rerun_recording
+from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
+                                     rerun_recording)
 from rov_mav.controller import ControllerSettings
 from rov_mav.metrics import run_metrics
 from rov_mav.mission import Mission, load_mission
@@ -79,7 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="score each particle over these scenarios (e.g. missions/scenarios/robust.yaml)")
     c.add_argument("--aggregate", choices=tuning.AGGREGATES, default="mean",
                    help="combine scenario costs by their mean (default) or the worst case")
-    c.add_argument("--duration", type=float, metavar="S", help="simulated seconds (default: the mission's)")
+    c.add_argument("--duration", type=positive_float, metavar="S", help="simulated seconds (default: the mission's)")
     r = p.add_argument_group("compute")
     r.add_argument("--threads", type=positive_int, default=2, help="in-process threads (default 2)")
     r.add_argument("--cluster", metavar="ADDR",
@@ -105,8 +106,6 @@ def main(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
-    if args.duration is not None and args.duration <= 0:
-        raise SystemExit("rov-mav tune: error: --duration must be positive")
     try:
         options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
     except ValueError as exc:
