@@ -38,6 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"rov-mav: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:   # an output path that cannot be written, a device that cannot be opened
+        print(f"rov-mav: error: {exc.filename or ''}: {exc.strerror or exc}".replace(": : ", ": "), file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -26,8 +26,6 @@ class DaskBackend:
         self._cluster = None
         if address.startswith("local:"):
             workers = int(address.removeprefix("local:"))
-            if workers < 1:
-                raise ValueError("local:N needs N >= 1 workers")
             self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                          host="127.0.0.1", dashboard_address=None)
             self._client = Client(self._cluster)

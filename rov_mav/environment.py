@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from rov_mav import config, kernel
 
@@ -29,6 +29,12 @@ class EnvironmentSchema(config.StrictModel):
     disturbance_period: NonNegative = 0.0     # s; 0 = no sinusoid
     current: Vec3 = [0.0] * 3                 # NED water velocity, m/s
     noise: NoiseSchema = NoiseSchema()
+
+    @model_validator(mode="after")
+    def _sinusoid_needs_a_period(self) -> "EnvironmentSchema":
+        if any(self.disturbance_amplitude) and self.disturbance_period == 0:
+            raise ValueError("disturbance_amplitude needs a disturbance_period > 0 (s)")
+        return self
 
 
 class _EnvironmentFile(config.StrictModel):

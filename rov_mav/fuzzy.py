@@ -136,4 +136,8 @@ def load_fuzzy(path: str | Path | None = None) -> FuzzySchedule:
         for dof in group.dofs:
             systems[dof] = system
             gains[dof] = group.input_gain
-    return FuzzySchedule(systems=tuple(systems), input_gains=gains, table_points=spec.table_points)
+    schedule = FuzzySchedule(systems=tuple(systems), input_gains=gains, table_points=spec.table_points)
+    if not np.isfinite(schedule.table).all():
+        raise config.ConfigError(f"{path}: groups: the membership functions are too narrow: some inputs fire no rule "
+                                 "and the centroid is undefined")
+    return schedule

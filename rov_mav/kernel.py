@@ -6,7 +6,7 @@ the tuner (`simulate_batch`, a whole swarm in one call), the bridge's plant (`rk
 nothing. `rov_mav.dynamics` and `rov_mav.law` hold the readable matrix forms that the tests hold these to.
 
 Conventions: eta = [x, y, z, phi, theta, psi] (NED, ZYX Euler), nu = [u, v, w, p, q, r] (body FRD).
-Packed vehicle vector (see `rov_mav.model.pack_vehicle`): M (36), M^-1 (36), linear damping (6),
+Packed vehicle vector (see `rov_mav.vehicle.Vehicle.packed`): M (36), M^-1 (36), linear damping (6),
 quadratic damping (6), W, B, r_g (3), r_b (3).
 """
 
@@ -350,7 +350,8 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
     Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
-    |tau_i| exceeds tau_max (6,) (thruster saturation). steps_done (B,) receives the ticks completed.
+    |tau_i| exceeds tau_max (6,) (thruster saturation). steps_done (B,) receives the index of the last tick
+    logged (N for a run that completed; a run that ends early stops at the last state before it failed).
     The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     n_runs = gains.shape[0]
@@ -399,7 +400,7 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
             for j in range(substeps):
                 rk4_step(plant[b], env[b], x, tau, k * dt + j * h, h, ws_plant)
             if _diverged(x):
-                done = k + 1
+                done = k
                 total = DIVERGED_COST
                 break
         cost[b] = total

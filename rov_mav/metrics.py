@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from rov_mav.law import tracking_error
+
 
 def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position error norm (m) and attitude error norm (rad, angles wrapped) per sample; (N, 6) -> (N,), (N,)."""
-    e = eta - eta_d
-    att = (e[:, 3:] + np.pi) % (2 * np.pi) - np.pi
-    return np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(att, axis=1)
+    e = tracking_error(eta, eta_d)
+    return np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1)
 
 
 def _rms(x: np.ndarray) -> float:
@@ -19,9 +20,11 @@ def _rms(x: np.ndarray) -> float:
 def run_metrics(mission: str, controller: str, t: np.ndarray, eta: np.ndarray, eta_d: np.ndarray,
                 tau: np.ndarray, tau_hat: np.ndarray, true_disturbance: np.ndarray | None,
                 completed: bool) -> dict:
-    """The metrics JSON: RMS and max errors, steady-state errors over the second half, effort, estimates."""
+    """The metrics JSON: RMS and max errors, steady-state errors over the second half, effort, estimates.
+
+    t (N,) s; eta, eta_d, tau, tau_hat (N, 6); true_disturbance (6,) or None."""
     pos, att = tracking_errors(eta, eta_d)
-    steady = t >= 0.5 * t[-1] if t.size else np.zeros(0, bool)
+    steady = t >= t[0] + 0.5 * (t[-1] - t[0]) if t.size else np.zeros(0, bool)
     dt = np.diff(t)
     effort = float(np.sum(np.sum(tau[:-1] ** 2, axis=1) * dt)) if t.size > 1 else 0.0
     return {
@@ -38,3 +41,9 @@ def run_metrics(mission: str, controller: str, t: np.ndarray, eta: np.ndarray, e
         "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance],
         "completed": bool(completed),
     }
+
+
+def trace_metrics(mission: str, controller: str, trace) -> dict:
+    """`run_metrics` of an offline run (a `rov_mav.simulation.Trace`)."""
+    return run_metrics(mission, controller, trace.t, trace.eta, trace.reference[:, :6], trace.tau, trace.tau_hat,
+                       trace.true_disturbance, trace.completed)

@@ -165,6 +165,9 @@ class Mission:
         """The reference at t_k = k dt, k = 0..N, N = round(duration / dt): (N + 1, 18)."""
         duration = self.duration if duration is None else duration
         n = int(round(duration / dt))
+        if n < 1:
+            raise config.ConfigError(f"{self.source}: duration {duration:g} s is shorter than one control period "
+                                     f"({dt:g} s)")
         return self.reference(np.arange(n + 1) * dt)
 
     def progress(self, t: float) -> float:

@@ -51,4 +51,4 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     eta, nu, tau, tau_hat, s, gamma = (log[0, :done + 1] for log in logs)
     return Trace(t=np.arange(done + 1) * dt, eta=eta, nu=nu, reference=ref[:done + 1], tau=tau, tau_hat=tau_hat,
                  s=s, gamma=gamma, true_disturbance=environment.constant_disturbance,
-                 completed=done == n - 1)
+                 completed=done == n - 1 and cost[0] < kernel.DIVERGED_COST)

@@ -93,7 +93,7 @@ class Vehicle:
 
     @cached_property
     def rigid_body_mass_matrix(self) -> np.ndarray:
-        """M_RB of Appendix I, with the inertia products."""
+        """M_RB of Appendix I about the body origin, with the inertia products: positive definite for any r_g."""
         m = self.mass
         xg, yg, zg = self.center_of_gravity
         mrb = np.zeros((6, 6))
@@ -101,7 +101,7 @@ class Vehicle:
         s = m * np.array([[0.0, -zg, yg], [zg, 0.0, -xg], [-yg, xg, 0.0]])
         mrb[:3, 3:] = -s
         mrb[3:, :3] = s
-        mrb[3:, 3:] = self.inertia_tensor
+        mrb[3:, 3:] = self.inertia_tensor - s @ s / m   # about the origin: I_o = I_g - m S(r_g)^2 (parallel axes)
         return mrb
 
     @cached_property

@@ -164,3 +164,25 @@ def test_surge_terminal_speed_balances_drag(vehicle):
     xu, xuu = vehicle.linear_damping[0], vehicle.quadratic_damping[0]
     expected = (-xu + np.sqrt(xu**2 + 4 * xuu * force)) / (2 * xuu)
     assert x[6] == pytest.approx(expected, rel=1e-6)
+
+
+def test_free_motion_conserves_inertial_momentum_and_energy(vehicle):
+    """With no damping and no restoring force (Kirchhoff's equations), the momentum R (M11 nu1 + M12 nu2) is constant
+    in the NED frame and the kinetic energy 1/2 nu^T M nu is constant. Energy alone holds for either sign of C
+    (nu^T C nu = 0); the momentum pins the m2c sign convention of ERRATA 5 (the printed C_a has the other one)."""
+    ideal = dataclasses.replace(vehicle, linear_damping=np.zeros(6), quadratic_damping=np.zeros(6),
+                                center_of_buoyancy=np.zeros(3), center_of_gravity=np.zeros(3))
+    p, env, M = ideal.packed(), np.zeros(kernel.E_SIZE), ideal.mass_matrix
+    x = np.concatenate([[0, 0, 0, 0.1, -0.2, 0.3], [0.4, -0.2, 0.3, 0.5, -0.4, 0.6]])
+    ws = np.zeros(80)
+
+    def momentum_and_energy(x):
+        R = dynamics.rotation(x[:6])
+        return R @ (M[:3] @ x[6:]), 0.5 * x[6:] @ M @ x[6:]
+
+    p0, e0 = momentum_and_energy(x)
+    for k in range(2000):
+        kernel.rk4_step(p, env, x, np.zeros(6), k * 0.002, 0.002, ws)
+    p1, e1 = momentum_and_energy(x)
+    np.testing.assert_allclose(p1, p0, atol=1e-8)
+    assert e1 == pytest.approx(e0, rel=1e-8)

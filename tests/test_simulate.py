@@ -11,7 +11,7 @@ import pytest
 
 from rov_mav import dynamics, kernel, law
 from rov_mav.controller import load_settings
-from rov_mav.metrics import run_metrics
+from rov_mav.metrics import trace_metrics
 from rov_mav.mission import load_mission
 from rov_mav.simulation import simulate
 
@@ -24,8 +24,7 @@ def line():
 
 
 def metrics_of(trace, mission, kind):
-    return run_metrics(mission.name, kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau, trace.tau_hat,
-                       trace.true_disturbance, trace.completed)
+    return trace_metrics(mission.name, kind, trace)
 
 
 def test_fuzzy_on_the_line_tracks_within_2_cm_and_estimates_head_to_tau_d(vehicle, line):
@@ -83,10 +82,19 @@ def test_batch_runs_equal_single_runs(vehicle, line):
 
 
 def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
-    settings = load_settings("fuzzy")
-    trace = simulate(line, settings.with_gains(np.full(12, 400.0)), vehicle, dt=0.05)
-    assert not trace.completed
-    assert np.isfinite(trace.eta).all()
+    settings = load_settings("fuzzy").with_gains(np.full(12, 400.0))
+    trace = simulate(line, settings, vehicle, dt=0.05)
+    assert not trace.completed and trace.t[-1] < line.duration
+    # every row of the trace is a state the run reached (none left unwritten): the heading starts at pi/4
+    assert np.isfinite(trace.eta).all() and (trace.eta[:, 5] != 0.0).all()
+    ref = line.sampled_reference(0.05)
+    cost, steps = np.zeros(1), np.zeros(1, dtype=np.int64)
+    empty = np.zeros((1, 0, 6))
+    kernel.simulate_batch(vehicle.packed()[None], line.environment.packed()[None], vehicle.packed(),
+                          settings.gains[None], *settings.kernel_arguments(), ref, 0.05, 1,
+                          np.concatenate([line.start_pose, np.zeros(6)]), np.zeros(1, dtype=np.int64),
+                          *kernel.printed_cost(ref), *[empty] * 6, cost, steps)
+    assert cost[0] == kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1
 
 
 def test_simulate_command_writes_metrics_and_figures(tmp_path):

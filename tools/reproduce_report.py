@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from rov_mav.controller import load_settings
-from rov_mav.metrics import run_metrics
+from rov_mav.metrics import trace_metrics
 from rov_mav.mission import load_mission
 from rov_mav.plots import plot_dofs, plot_estimates, plot_path
 from rov_mav.simulation import simulate
@@ -35,8 +35,7 @@ def run_all():
             for kind in CONTROLLERS:
                 trace = simulate(mission, load_settings(kind), model, plant)
                 traces[(mission_name, error_name, kind)] = trace
-                m = run_metrics(mission_name, kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau,
-                                trace.tau_hat, trace.true_disturbance, trace.completed)
+                m = trace_metrics(mission_name, kind, trace)
                 estimate_error = np.abs(np.array(m["final_disturbance_estimate"]) - mission.environment.disturbance)
                 rows.append((mission_name, error_name, kind, m, estimate_error))
     return traces, rows

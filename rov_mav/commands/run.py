@@ -168,8 +168,9 @@ def main(args: argparse.Namespace) -> int:
         if bridge is not None:
             bridge.stop()
     loop = result.loop_figures()
-    metrics = run_metrics(mission.name, settings.kind, result.t, result.eta, result.eta_d, result.tau,
-                          result.tau_hat, true_disturbance, result.completed)
+    flown = result.t >= 0.0   # the mission proper, without the lead-in to its start
+    metrics = run_metrics(mission.name, settings.kind, result.t[flown], result.eta[flown], result.eta_d[flown],
+                          result.tau[flown], result.tau_hat[flown], true_disturbance, result.completed)
     metrics["loop"] = loop
     if args.metrics:
         path = Path(args.metrics)

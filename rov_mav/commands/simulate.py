@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from rov_mav.config import ConfigError
+
 from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
                                      rerun_recording)
 
@@ -32,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav import telemetry
-    from rov_mav.metrics import run_metrics
+    from rov_mav.metrics import trace_metrics
     from rov_mav.mission import load_mission
     from rov_mav.plots import plot_run
     from rov_mav.simulation import simulate
@@ -43,11 +45,14 @@ def main(args: argparse.Namespace) -> int:
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model
     out_dir = Path(args.out or f"out/simulate-{mission.name}-{settings.kind}")
-    trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed)
-    metrics = run_metrics(mission.name, settings.kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau,
-                          trace.tau_hat, trace.true_disturbance, trace.completed)
-    figures = plot_run(trace, f"{mission.name} / {settings.kind}", out_dir)
     metrics_path = Path(args.metrics) if args.metrics else out_dir / "metrics.json"
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
+    if metrics_path.is_dir():
+        raise ConfigError(f"--metrics {metrics_path}: is a folder, expected a file name")
+    trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed)
+    metrics = trace_metrics(mission.name, settings.kind, trace)
+    figures = plot_run(trace, f"{mission.name} / {settings.kind}", out_dir)
     metrics_path.parent.mkdir(parents=True, exist_ok=True)
     metrics_path.write_text(json.dumps(metrics, indent=2) + "\n")
     rerun_target, recording = rerun_recording(args, out_dir / "run.rrd", trace.reference[:, :3])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -12,11 +13,11 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
-from rov_mav import pso, tuning
+from rov_mav import kernel, pso, tuning
 from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
                                      rerun_recording)
 from rov_mav.controller import ControllerSettings
-from rov_mav.metrics import run_metrics
+from rov_mav.metrics import trace_metrics
 from rov_mav.mission import Mission, load_mission
 from rov_mav.scenarios import load_scenarios, nominal
 from rov_mav.simulation import Trace, simulate
@@ -45,6 +46,18 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"'{text}': need at least 1")
     return value
+
+
+def cluster_address(text: str) -> str:
+    """Parse 'local:N' (N >= 1) or 'tcp://HOST:PORT' (argparse type)."""
+    if text.startswith("local:"):
+        count = text.removeprefix("local:")
+        if count.isdigit() and int(count) >= 1:
+            return text
+        raise argparse.ArgumentTypeError(f"'{text}': local:N needs a number of workers N >= 1")
+    if text.startswith("tcp://") and text.rpartition(":")[2].isdigit():
+        return text
+    raise argparse.ArgumentTypeError(f"'{text}' is neither local:N nor tcp://HOST:PORT")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -83,7 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--duration", type=positive_float, metavar="S", help="simulated seconds (default: the mission's)")
     r = p.add_argument_group("compute")
     r.add_argument("--threads", type=positive_int, default=2, help="in-process threads (default 2)")
-    r.add_argument("--cluster", metavar="ADDR",
+    r.add_argument("--cluster", type=cluster_address, metavar="ADDR",
                    help="evaluate on Dask: local:N (a LocalCluster of N processes) or tcp://HOST:PORT")
     o = p.add_argument_group("output")
     o.add_argument("--out", metavar="FILE", help="gains YAML to write (default out/tune-MISSION/gains.yaml)")
@@ -137,6 +150,10 @@ def main(args: argparse.Namespace) -> int:
         result = tuning.tune(problem, lower, upper, options, args.seed, backend, progress)
         objective = problem.costs(np.stack([start.gains, result.best_position]), backend)
     elapsed = time.perf_counter() - t0
+    if result.best_cost >= kernel.DIVERGED_COST:
+        print(f"rov-mav tune: every particle diverged or saturated the thrusters (cost {kernel.DIVERGED_COST:g}); "
+              "no gains written: widen --bounds or check the mission's limits and the vehicle file", file=sys.stderr)
+        return 1
 
     tuned = start.with_gains(result.best_position)
     write_gains(out, tuned, f"rov-mav tune {mission.name}: cost {args.cost} = {result.best_cost!r} "
@@ -181,8 +198,7 @@ def _on_the_mission(mission: Mission, settings: ControllerSettings, model: Vehic
     """The gains, the metrics JSON of `simulate` and the cost of one recorded run on the mission as written,
     and that run."""
     trace = simulate(mission, settings, model, duration=duration)
-    metrics = run_metrics(mission.name, settings.kind, trace.t, trace.eta, trace.reference[:, :6], trace.tau,
-                          trace.tau_hat, trace.true_disturbance, trace.completed)
+    metrics = trace_metrics(mission.name, settings.kind, trace)
     return {"k1": settings.k1.tolist(), "k2": settings.k2.tolist(),
             "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}, trace
 
