@@ -1,7 +1,10 @@
 """The runner's actuation: wrench -> 8 thrusts -> 8 PWMs, at the battery voltage, within the thrust cap.
 
 One allocator and one T200 map for the project (`rov_mav.thrusters`); this only keeps their limits current: each
-thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways.
+thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also
+held in the PWM domain, at the highest voltage seen: the battery's voltage sags and recovers faster than the
+vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
+Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
 """
 
 from __future__ import annotations
@@ -9,24 +12,33 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav.thrusters import Allocator, AllocationInfo, allocation_matrix, load_t200, thrusts_to_pwms
-from rov_mav.vehicle import Vehicle
 
 VOLTAGE_STEP = 0.1        # V: rebuild the allocator when the battery moved this much
 DEFAULT_VOLTAGE = 16.0    # V: until the vehicle reports one (a charged 4S pack under load)
+NEUTRAL = 1500            # us
+PWM_TOLERANCE = 2         # us: a reported output this far beyond the PWM cap counts as crossing it
 
 
 class Actuation:
-    """`command(tau)` -> (thrusts (8,) N, PWMs (8,) us rounded, AllocationInfo)."""
+    """`command(tau)` -> (thrusts (8,) N, PWMs (8,) us as sent, AllocationInfo)."""
 
-    def __init__(self, vehicle: Vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE):
+    def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE):
         self.matrix = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions)
         self.max_thrust = max_thrust
         self.t200 = load_t200()
+        self.directions = np.ones(self.matrix.shape[1])
         self.voltage = float("nan")
+        self.peak_voltage = 0.0
+        self.pwm_range = (1100.0, 1900.0)
         self.allocator: Allocator | None = None
         self.set_voltage(voltage)
 
     def set_voltage(self, voltage: float) -> None:
+        if voltage > self.peak_voltage:
+            self.peak_voltage = float(voltage)
+            if self.max_thrust is not None:
+                self.pwm_range = (float(np.floor(self.t200.pwm(-self.max_thrust, self.peak_voltage))),
+                                  float(np.ceil(self.t200.pwm(self.max_thrust, self.peak_voltage))))
         if abs(voltage - self.voltage) < VOLTAGE_STEP:
             return
         self.voltage = float(voltage)
@@ -35,10 +47,17 @@ class Actuation:
         self.allocator = Allocator(self.matrix, np.full(n, -min(self.t200.max_reverse(voltage), cap)),
                                    np.full(n, min(self.t200.max_forward(voltage), cap)))
 
+    def set_directions(self, directions: np.ndarray) -> None:
+        """MOT_1..8_DIRECTION of the vehicle (+1 or -1 each)."""
+        self.directions = np.where(np.asarray(directions, dtype=float) < 0, -1.0, 1.0)
+
     def command(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, AllocationInfo]:
         thrusts, info = self.allocator.thrusts(tau)
-        return thrusts, np.round(thrusts_to_pwms(thrusts, self.voltage, self.t200)), info
+        pwm = np.clip(np.round(thrusts_to_pwms(thrusts, self.voltage, self.t200)), *self.pwm_range)
+        return thrusts, NEUTRAL + self.directions * (pwm - NEUTRAL), info
 
-    def thrust_of(self, pwms: np.ndarray) -> np.ndarray:
-        """Thrusts (8,) N the vehicle produces at PWMs (8,) at the current voltage (the T200 map forward)."""
-        return self.t200.thrust(pwms, self.voltage)
+    def beyond_cap(self, outputs: np.ndarray) -> np.ndarray:
+        """Which of the vehicle's reported outputs (8,) us lie beyond the PWM range the thrust cap allows."""
+        pwm = NEUTRAL + self.directions * (np.asarray(outputs, dtype=float) - NEUTRAL)
+        low, high = self.pwm_range
+        return (pwm < low - PWM_TOLERANCE) | (pwm > high + PWM_TOLERANCE)

@@ -14,6 +14,7 @@ command.
 
 from __future__ import annotations
 
+import os
 import signal
 import time
 import traceback
@@ -38,10 +39,12 @@ RATE_WINDOW = 1.0                # vehicle s of telemetry measured before arming
 RATE_TOLERANCE = 0.8             # fraction of the asked rate that must arrive
 RC_NEUTRAL_TOLERANCE = 25        # us: RC input further than this from 1500 means someone is driving
 NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
-THRUST_MARGIN = 1.1              # reported thrust above this x the cap trips the limit
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
+LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent vehicle is reported as lost
+# Ctrl-C, kill, a closed terminal or ssh session, Ctrl-\: each ends in the safe stop.
+HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
 
 class Abort(Exception):
@@ -140,7 +143,7 @@ class Runner:
     # -- top level -------------------------------------------------------------------------------------------
 
     def run(self) -> RunResult:
-        previous = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        previous = {s: signal.signal(s, self._on_signal) for s in HANDLED_SIGNALS}
         self.session.interrupt = self._interrupt
         completed, code, reason = False, 0, "mission complete"
         try:
@@ -165,14 +168,22 @@ class Runner:
         return self._result(code, reason, completed, report)
 
     def say(self, text: str, level: str = "info") -> None:
+        """Tell every sink; a sink that fails (a closed terminal, a full disk) never stops the run or its stop."""
         t = self._mission_time(self.last_state.t) if self.last_state is not None else 0.0
         for sink in self.sinks:
-            sink.log_event(t, text, level)
+            try:
+                sink.log_event(t, text, level)
+            except Exception:   # noqa: BLE001 -- reporting must not break the safe stop
+                pass
 
     def _on_signal(self, signum, _frame) -> None:
+        """Only record the signal: the loop (or the stop) acts on it. os.write is safe inside a handler."""
         name = signal.Signals(signum).name
         if self.stopping:
-            self.say(f"{name} received: still stopping safely, please wait", "warning")
+            try:
+                os.write(2, f"\n{name} received: still stopping safely, please wait\n".encode())
+            except OSError:
+                pass
             return
         self.signal_name = self.signal_name or name
 
@@ -188,11 +199,17 @@ class Runner:
         self._warm_up()
         vehicle = s.connect(o.heartbeat_timeout)
         self.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
+        stale = [] if o.dry_run else self._read_outputs()
+        if stale:   # live passthrough outputs left by an earlier run: neutral first, before any refusal
+            self._use_gcs_sysid()
+            s.start_heartbeats()
+            self._neutralise(stale)
         if s.armed and not o.force:
             raise Abort("the vehicle is already armed by someone else: refusing to take it over (--force to "
                         "override)")
-        self._use_gcs_sysid()
-        s.start_heartbeats()
+        if not stale:
+            self._use_gcs_sysid()
+            s.start_heartbeats()
         for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
             msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
             hz = SIDE_RATES.get(name, o.rate)
@@ -202,13 +219,40 @@ class Runner:
                 raise Abort(f"the vehicle refused SET_MESSAGE_INTERVAL for {name} at {hz:g} Hz")
         self._wait_for_state()
         self._check_rates_and_rc()
-        if not o.dry_run:
-            names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
-            self.saved_functions = s.get_params(names)
-            missing = [n for n in names if n not in self.saved_functions]
-            if missing:
-                raise Abort(f"could not read {', '.join(missing)} from the vehicle")
-            self._recover_stale_passthrough()
+
+    def _read_outputs(self) -> list[str]:
+        """Save SERVO1..8_FUNCTION, learn MOT_1..8_DIRECTION; returns the outputs already on RCIN passthrough."""
+        s = self.session
+        names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
+        self.saved_functions = s.get_params(names)
+        missing = [n for n in names if n not in self.saved_functions]
+        if missing:
+            raise Abort(f"could not read {', '.join(missing)} from the vehicle")
+        directions = s.get_params([f"MOT_{n}_DIRECTION" for n in range(1, CHANNELS + 1)])
+        signs = [directions.get(f"MOT_{n}_DIRECTION", (1.0, 0))[0] for n in range(1, CHANNELS + 1)]
+        self.actuation.set_directions(np.array(signs))
+        reversed_ = [n for n, sign in enumerate(signs, 1) if sign < 0]
+        if reversed_:
+            self.say(f"MOT_n_DIRECTION = -1 on thruster(s) {reversed_}: passthrough bypasses it, so their PWM is "
+                     "mirrored about 1500")
+        stale = []
+        for n in range(1, CHANNELS + 1):
+            name = f"SERVO{n}_FUNCTION"
+            value, ptype = self.saved_functions[name]
+            if int(value) == PASSTHROUGH_BASE + n:
+                self.saved_functions[name] = (float(MOTOR_BASE + n), ptype)
+                stale.append(name)
+        return stale
+
+    def _neutralise(self, stale: list[str]) -> None:
+        """Outputs already on RCIN passthrough (a run that lost its link?) still drive their thrusters with the
+        last PWM: send neutral, and restore them to their motors when this run ends, whatever happens."""
+        self.say(f"{', '.join(stale)} already on RCIN passthrough (left by an interrupted run?): sending neutral; "
+                 "they will be restored to their motors when this run ends", "warning")
+        self.session.override_rate = self.options.rate
+        self.changed_functions += stale
+        if not self._neutral():
+            raise Abort("outputs left on RCIN passthrough and the vehicle does not confirm neutral")
 
     def _warm_up(self) -> None:
         """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
@@ -241,6 +285,7 @@ class Runner:
         start = time.monotonic()
         next_note = start + PROGRESS_EVERY
         while self.decoder.attitude is None or self.decoder.position is None:
+            self._interrupt()
             self._pump(0.05)
             now = time.monotonic()
             missing = self._missing_state()
@@ -263,6 +308,7 @@ class Runner:
         t_first = None
         deadline = time.monotonic() + self.session.clock.wall_seconds(RATE_WINDOW) * 3 + 2.0
         while time.monotonic() < deadline:
+            self._interrupt()
             for msg, _ in self.session.poll(0.02):
                 self._track(msg)
                 kind = msg.get_type()
@@ -289,16 +335,6 @@ class Runner:
             raise Abort("another station seems to be driving the vehicle (" + ", ".join(driving + others)
                         + "): refusing to start (--force to take over)")
 
-    def _recover_stale_passthrough(self) -> None:
-        """Outputs already on RCIN passthrough (a run that lost its link?) are restored to their motors."""
-        for n in range(1, CHANNELS + 1):
-            name = f"SERVO{n}_FUNCTION"
-            value, ptype = self.saved_functions[name]
-            if int(value) == PASSTHROUGH_BASE + n:
-                self.saved_functions[name] = (float(MOTOR_BASE + n), ptype)
-                self.say(f"{name} is already RCIN{n} passthrough (left by an interrupted run?): it will be "
-                         f"restored to motor {n} ({MOTOR_BASE + n})", "warning")
-
     def _take_over(self) -> None:
         s = self.session
         s.override_rate = self.options.rate
@@ -306,10 +342,9 @@ class Runner:
         self._pump_for(NEUTRAL_HOLD)
         for n in range(1, CHANNELS + 1):
             name = f"SERVO{n}_FUNCTION"
-            value, ptype = self.saved_functions[name]
-            if int(value) == PASSTHROUGH_BASE + n:
-                continue
-            self.changed_functions.append(name)
+            _, ptype = self.saved_functions[name]
+            if name not in self.changed_functions:
+                self.changed_functions.append(name)
             if not s.set_param(name, PASSTHROUGH_BASE + n, ptype):
                 raise Abort(f"the vehicle did not confirm {name} = {PASSTHROUGH_BASE + n} (RCIN{n} passthrough)")
         self.say("SERVO1..8_FUNCTION set to RCIN1..8 passthrough (confirmed)")
@@ -366,6 +401,7 @@ class Runner:
     def _pump_for(self, vehicle_seconds: float) -> None:
         end = time.monotonic() + self.session.clock.wall_seconds(vehicle_seconds)
         while time.monotonic() < end:
+            self._interrupt()
             self._pump(0.01)
 
     def _track(self, msg) -> bool:
@@ -442,10 +478,10 @@ class Runner:
             if error > lim.max_tracking_error:
                 crossed.append(f"tracking error {error:.2f} m > max_tracking_error {lim.max_tracking_error:g} m")
         servo = self.decoder.servo
-        if lim.max_thrust is not None and servo is not None:
-            worst = float(np.max(np.abs(self.actuation.thrust_of(servo))))
-            if worst > lim.max_thrust * THRUST_MARGIN:
-                crossed.append(f"thruster output {worst:.1f} N (SERVO_OUTPUT_RAW) > max_thrust {lim.max_thrust:g} N")
+        if lim.max_thrust is not None and servo is not None and self.actuation.beyond_cap(servo).any():
+            low, high = self.actuation.pwm_range
+            crossed.append(f"thruster outputs {servo.astype(int).tolist()} us (SERVO_OUTPUT_RAW) beyond the "
+                           f"{low:.0f}-{high:.0f} us that max_thrust {lim.max_thrust:g} N allows")
         if not crossed:
             return
         if not self.options.dry_run:
@@ -478,14 +514,25 @@ class Runner:
                 report.append("dry run: no parameter changed, nothing armed, no override sent")
             report += self._restore_streams(alive=self._answering())
             return self._finish(report)
-        neutral_confirmed = self._neutral()
+        def attempt(label: str, action):
+            try:
+                return action()
+            except Exception as exc:   # noqa: BLE001 -- one failed step must not skip the next ones
+                report.append(f"{label} FAILED: {exc!r}")
+                return None
+
+        neutral_confirmed = bool(attempt("neutral", self._neutral))
         alive = neutral_confirmed or self._answering()
+        retry_until = time.monotonic() + LOST_LINK_RETRY
+        while not alive and time.monotonic() < retry_until:    # a glitch, or the vehicle is busy: keep trying
+            neutral_confirmed = bool(attempt("neutral", self._neutral))
+            alive = neutral_confirmed or self._answering()
         report.append("neutral 1500 us on channels 1-8: sent, "
                       + ("confirmed by SERVO_OUTPUT_RAW" if neutral_confirmed else "NOT confirmed"))
         if not alive:
             # No release: arriving together with the neutral, it would cancel it (both land before the vehicle
             # next reads its RC input), leaving the flight command in place. Neutral stays the last word.
-            s.fire(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0)
+            attempt("disarm", lambda: s.fire(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0))
             report.append("disarm: sent, no answer")
             last = self.last_override or [NEUTRAL] * CHANNELS
             report.append(
@@ -500,19 +547,21 @@ class Runner:
             return self._finish(report)
         if not neutral_confirmed:
             self._pump_for(NEUTRAL_HOLD)           # give the vehicle time to apply it before letting go
-        s.release_overrides()
-        report.append("RC overrides on channels 1-8 released")
+        if attempt("release", lambda: s.release_overrides() or True):
+            report.append("RC overrides on channels 1-8 released")
         if self.armed_by_us or s.armed:
-            report.append("disarmed (confirmed by HEARTBEAT)" if s.arm(False) else "disarm NOT confirmed")
+            report.append("disarmed (confirmed by HEARTBEAT)" if attempt("disarm", lambda: s.arm(False))
+                          else "disarm NOT confirmed")
         restored, failed = [], []
         for name in self.changed_functions:
             value, ptype = self.saved_functions[name]
-            (restored if s.set_param(name, value, ptype) else failed).append(f"{name}={int(value)}")
+            ok = attempt(f"restore {name}", lambda: s.set_param(name, value, ptype))  # noqa: B023 -- called now
+            (restored if ok else failed).append(f"{name}={int(value)}")
         if restored:
             report.append("restored " + ", ".join(restored) + " (confirmed by PARAM_VALUE)")
         if failed:
             report.append("NOT restored (no confirmation): " + ", ".join(failed))
-        report += self._restore_streams(alive=True)
+        report += attempt("message rates", lambda: self._restore_streams(alive=True)) or []
         return self._finish(report)
 
     def _neutral(self) -> bool:

@@ -9,9 +9,9 @@ import threading
 import time
 
 import pytest
-from run_helpers import (WAIT, RunnerProcess, armed, assert_left_safe, bridge_with_checker, checker, free_port,
-                         servo_functions, servo_outputs, short_mission)
-from test_bridge_gcs import mavutil
+from run_helpers import (SPEEDUP, WAIT, RunnerProcess, armed, assert_left_safe, bridge_with_checker, checker,
+                         free_port, servo_functions, servo_outputs, short_mission)
+from test_bridge_gcs import Gcs, mavutil
 
 
 def _runner(bridge, mission, *args: str) -> RunnerProcess:
@@ -73,7 +73,7 @@ def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
             assert_left_safe(gcs)
         finally:
             gcs.close()
-    assert "SERVO1_FUNCTION is already RCIN1 passthrough" in rerun.output
+    assert "SERVO1_FUNCTION, SERVO2_FUNCTION" in rerun.output and "already on RCIN passthrough" in rerun.output
 
 
 def test_dry_run_changes_nothing_on_the_vehicle(tmp_path):
@@ -158,3 +158,33 @@ def test_no_vehicle_gives_a_clear_message(tmp_path):
                        "--heartbeat-timeout", "1") as run:
         assert run.wait() == 1, run.output
     assert "no HEARTBEAT from a vehicle on udpout:127.0.0.1:" in run.output and "within 1 s" in run.output
+
+
+def test_outputs_left_on_passthrough_are_made_neutral_before_anything_else(tmp_path):
+    """The hazard after a run lost its link: outputs still on RCIN passthrough, the pilot-input failsafe has put
+    channels 1-6 back to neutral but 7 and 8 keep driving two thrusters. The next run must send neutral first (not
+    refuse on seeing RC7/RC8 off neutral and leave them running), then fly and restore everything."""
+    mission = short_mission(tmp_path, goto_x=0.4, hold=1.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
+    with bridge:
+        gcs = checker(checker_port)
+        previous = Gcs(checker_port, speedup=SPEEDUP, sysid=255)     # the earlier run, as the GCS sysid
+        try:
+            previous.connect()
+            for n in range(1, 9):
+                assert previous.set_param(f"SERVO{n}_FUNCTION", 50 + n).param_value == 50 + n
+            for _ in range(5):
+                previous.rc_override([1500] * 6 + [1600, 1400])
+                time.sleep(0.02)
+            previous.close()                                             # ... and then its link was lost
+            gcs.heartbeat()                            # the port answers its latest sender: the checker again
+            deadline = time.monotonic() + WAIT
+            while servo_outputs(gcs)[:6] != [1500] * 6 and time.monotonic() < deadline:
+                time.sleep(0.1)                                          # pilot-input failsafe: 1-6 neutral
+            assert servo_outputs(gcs) == [1500] * 6 + [1600, 1400]      # 7 and 8 still driving
+            with _runner(bridge, mission) as run:
+                assert run.wait() == 0, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "already on RCIN passthrough" in run.output

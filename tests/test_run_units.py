@@ -61,3 +61,27 @@ def test_actuation_caps_every_thruster_and_uses_the_battery_voltage(vehicle):
     act.set_voltage(12.0)
     _, pwm_12v, _ = act.command(np.array([10.0, 0, 0, 0, 0, 0]))
     assert np.any(np.abs(pwm_12v - 1500) > np.abs(pwm_16v - 1500))    # a weaker battery needs more PWM
+
+
+def test_the_thrust_cap_holds_in_pwm_at_the_highest_voltage_seen(vehicle):
+    """A PWM computed at a sagged voltage must not exceed the cap once the battery recovers."""
+    t200 = load_t200()
+    act = Actuation(vehicle, max_thrust=40.0, voltage=16.8)
+    act.set_voltage(14.0)                                               # sagged under load
+    thrusts, pwm, _ = act.command(np.array([500.0, 0, 300.0, 0, 0, 0]))
+    assert np.all(np.abs(t200.thrust(pwm, 16.8)) <= 40.0 + 0.3)         # what the recovered battery would push
+    assert not act.beyond_cap(pwm).any()
+    assert act.beyond_cap(np.array([1500, 1500, 1900, 1500, 1500, 1500, 1500, 1500])).tolist() == \
+        [False, False, True, False, False, False, False, False]
+
+
+def test_reversed_thrusters_get_mirrored_pwm(vehicle):
+    """Passthrough bypasses MOT_n_DIRECTION: a thruster with direction -1 is sent 3000 - PWM."""
+    act = Actuation(vehicle, max_thrust=40.0, voltage=16.0)
+    tau = np.array([20.0, 5.0, -10.0, 0, 0, 1.0])
+    _, straight, _ = act.command(tau)
+    act.set_directions(np.array([1, -1, 1, 1, 1, 1, -1, 1]))
+    _, mirrored, _ = act.command(tau)
+    np.testing.assert_array_equal(mirrored[[0, 2, 3, 4, 5, 7]], straight[[0, 2, 3, 4, 5, 7]])
+    np.testing.assert_array_equal(mirrored[[1, 6]], 3000 - straight[[1, 6]])
+    assert not act.beyond_cap(mirrored).any()
