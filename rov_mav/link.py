@@ -103,7 +103,8 @@ class Session:
                 next_hello = time.monotonic() + 0.5   # address; not a heartbeat, which would arm its GCS failsafe
                 self._send("timesync", 0, time.monotonic_ns())
             for msg, _ in self._receive(0.1):
-                if msg.get_type() == "HEARTBEAT" and self.conn.probably_vehicle_heartbeat(msg):
+                if msg.get_type() == "HEARTBEAT" and self.conn.probably_vehicle_heartbeat(msg) \
+                        and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:   # not a camera, companion, GCS
                     return self._identify(msg)
             self._check_interrupt()
         raise LinkError(f"no HEARTBEAT from a vehicle on {self.target} within {timeout:g} s: is the vehicle (or "

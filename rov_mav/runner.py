@@ -42,6 +42,7 @@ NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
+DRY_RUN_SYSID = 254               # a dry run's own sysid: anything but the vehicle's GCS sysid
 LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent vehicle is reported as lost
 # Ctrl-C, kill, a closed terminal or ssh session, Ctrl-\: each ends in the safe stop.
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
@@ -274,7 +275,13 @@ class Runner:
                      "warning")
             return
         name, value = found
-        if o.sysid is not None and o.sysid != value and not o.dry_run:
+        if o.dry_run:
+            # Heartbeats from the GCS sysid would hide a lost link from the pilot's own ground station (and ArduSub
+            # would count them for its GCS failsafe): a dry run, which sends no override, speaks as another sysid.
+            s.use_sysid(DRY_RUN_SYSID if value != DRY_RUN_SYSID else DRY_RUN_SYSID - 1)
+            self.say(f"dry run: speaking as sysid {s.sysid}, not the vehicle's GCS sysid ({name} = {value})")
+            return
+        if o.sysid is not None and o.sysid != value:
             raise Abort(f"--sysid {o.sysid} differs from the vehicle's {name} = {value}: ArduSub ignores overrides "
                         f"from any other sysid")
         s.use_sysid(o.sysid if o.sysid is not None else value)
