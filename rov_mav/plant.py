@@ -45,14 +45,6 @@ class Plant:
         kernel.rk4_step(self._params, self._env, self._x, np.asarray(tau, dtype=float), self.t, h, self._ws)
         self.t += h
 
-    def nu_dot(self, tau: np.ndarray) -> np.ndarray:
-        """Body acceleration now under the control wrench tau (for accelerometer-like outputs)."""
-        total = np.zeros(6)
-        kernel.disturbance(self._env, self.t, np.asarray(tau, dtype=float), total)
-        dx = np.zeros(12)
-        kernel.state_derivative(self._params, self._x, total, self._env[kernel.E_CURRENT:kernel.E_CURRENT + 3], dx)
-        return dx[6:]
-
     def measured(self) -> tuple[np.ndarray, np.ndarray]:
         """(eta, nu) as a sensor suite reports them: the true state plus the environment's Gaussian noise."""
         position, attitude, velocity, rate = self.environment.noise
