@@ -12,6 +12,7 @@ import numpy as np
 
 from rov_mav import config
 from rov_mav.mission import Mission, _MissionSchema
+from rov_mav.units import wrap_angle
 
 AT_START_DISTANCE = 0.05          # m
 AT_START_HEADING = math.radians(3.0)
@@ -19,22 +20,19 @@ TURN_RATE = 0.2                   # rad/s for a turn on the spot
 SETTLE = 3.0                      # s of hold at the start pose
 
 
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
 
 def approach(eta: np.ndarray, start: np.ndarray, speed: float) -> Mission | None:
     """The lead-in from pose eta (6,) to the start pose (6,) at `speed` m/s, or None if already there."""
     distance = float(np.linalg.norm(start[:3] - eta[:3]))
-    turn = abs(_wrap(start[5] - eta[5]))
+    turn = abs(wrap_angle(start[5] - eta[5]))
     if distance < AT_START_DISTANCE and turn < AT_START_HEADING:
         return None
-    heading = float(_wrap(start[5]))
+    heading = float(wrap_angle(start[5]))
     path = [{"hold": max(SETTLE, turn / TURN_RATE), "heading": heading}]
     if distance >= AT_START_DISTANCE:
         speed = min(speed, distance * TURN_RATE / turn) if turn > 0 else speed   # no faster turn than on the spot
         path = [{"goto": [float(v) for v in start[:3]], "speed": float(speed), "heading": heading},
                 {"hold": SETTLE}]
-    data = {"name": "approach", "start": {"position": [float(v) for v in eta[:3]], "heading": _wrap(float(eta[5]))},
+    data = {"name": "approach", "start": {"position": [float(v) for v in eta[:3]], "heading": wrap_angle(float(eta[5]))},
             "path": path}
     return Mission(config.parse(_MissionSchema, data, "approach"), "approach")

@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav import dynamics
+from rov_mav.units import wrap_angle
 from rov_mav.vehicle import Vehicle
 
 
 def tracking_error(eta: np.ndarray, eta_d: np.ndarray) -> np.ndarray:
     """e = eta - eta_d (Eq. 2.13) with the angle errors wrapped to [-pi, pi)."""
     e = np.asarray(eta, float) - eta_d
-    e[..., 3:] = (e[..., 3:] + np.pi) % (2 * np.pi) - np.pi
+    e[..., 3:] = wrap_angle(e[..., 3:])
     return e
 
 

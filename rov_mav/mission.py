@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from rov_mav import config
 from rov_mav.environment import Environment, EnvironmentSchema
-from rov_mav.units import Angle
+from rov_mav.units import Angle, wrap_angle
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
@@ -175,9 +175,6 @@ class Mission:
         return min(max(t / self.duration, 0.0), 1.0)
 
 
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
 
 def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
     pose = np.array([*spec.start.position, spec.start.heading], dtype=float)
@@ -189,7 +186,7 @@ def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
         if entry.goto is not None:
             target = np.array([*entry.goto, pose[3]])
             if entry.heading is not None:
-                target[3] = pose[3] + _wrap(entry.heading - pose[3])
+                target[3] = pose[3] + wrap_angle(entry.heading - pose[3])
             length = float(np.linalg.norm(target[:3] - pose[:3]))
             if length < 1e-6:
                 raise config.ConfigError(f"{where}.goto: zero-length segment (same point as the previous one)")
@@ -198,7 +195,7 @@ def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
         elif entry.hold is not None:
             target = pose.copy()
             if entry.heading is not None:
-                target[3] = pose[3] + _wrap(entry.heading - pose[3])
+                target[3] = pose[3] + wrap_angle(entry.heading - pose[3])
             seg = Segment(t, entry.hold, pose, target, 0.5 * entry.hold, 0.5 * entry.hold, False)
         else:
             velocity = np.array(entry.line)

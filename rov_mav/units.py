@@ -1,11 +1,18 @@
-"""Angles in configuration files: radians by default, or an explicit unit ('90 deg', '1.57 rad')."""
+"""Angles: wrapping, and angles in configuration files (radians by default, or '90 deg', '1.57 rad')."""
 
 from __future__ import annotations
 
 import math
 from typing import Annotated, Any
 
+import numpy as np
 from pydantic import BeforeValidator
+
+
+def wrap_angle(angle):
+    """Wrap radians to [-pi, pi); scalars stay floats, arrays stay arrays (the compiled kernel has its own)."""
+    wrapped = (np.asarray(angle, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+    return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
 def parse_angle(value: Any) -> float:

@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from rov_mav.units import wrap_angle
+
 STABILIZE, ACRO, ALT_HOLD, POSHOLD = 0, 1, 2, 16
 ASSISTED = frozenset({STABILIZE, ACRO, ALT_HOLD, POSHOLD})
 DEAD_ZONE = 0.05               # stick deflection (of 1) treated as centred
@@ -31,9 +33,6 @@ INTEGRAL_LIMIT = 0.3           # largest share of an axis the integrators may ho
 def _clamp(a: float) -> float:
     return min(max(float(a), -1.0), 1.0)
 
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 class Holds:
@@ -65,7 +64,7 @@ class Holds:
             self.heading = float(psi)
             out[2] = RATE_P * (yaw * MAX_RATE - r)
         else:
-            out[2] = ANGLE_P * _wrap(self.heading - psi) - RATE_D * r
+            out[2] = ANGLE_P * wrap_angle(self.heading - psi) - RATE_D * r
         if mode in (ALT_HOLD, POSHOLD):
             out[3] = self._depth(throttle, eta, nu, dt)
         if mode == POSHOLD:

@@ -35,6 +35,7 @@ import rerun as rr
 
 from rov_mav import dynamics
 from rov_mav.tick import TickRecord
+from rov_mav.units import wrap_angle
 from rov_mav.vehicle import Vehicle
 
 TIMELINE = "vehicle_time"
@@ -150,7 +151,7 @@ def send_ticks(rec: rr.RecordingStream, ticks: TickColumns, vehicle: Vehicle,
     send(REFERENCE_NOW, rr.Points3D.columns(positions=eta_d[:, :3]))
 
     error = ticks.eta - eta_d
-    error[:, 3:] = np.degrees((error[:, 3:] + np.pi) % (2 * np.pi) - np.pi)
+    error[:, 3:] = np.degrees(wrap_angle(error[:, 3:]))
     shown = np.concatenate([ticks.eta[:, :3], np.degrees(eta_d[:, 3:]) + error[:, 3:]], axis=1)  # angles unwrapped
     reference = np.concatenate([eta_d[:, :3], np.degrees(eta_d[:, 3:])], axis=1)
     for i, path in enumerate(POSE):
