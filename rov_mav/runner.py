@@ -39,6 +39,8 @@ RATE_WINDOW = 1.0                # vehicle s of telemetry measured before arming
 RATE_TOLERANCE = 0.8             # fraction of the asked rate that must arrive
 RC_NEUTRAL_TOLERANCE = 25        # us: RC input further than this from 1500 means someone is driving
 NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
+OVERRIDE_PROBE = 1510            # us: inside the T200 dead band at every voltage (1476-1528 us at 20 V)
+PROBE_WAIT = 2.0                 # vehicle s for RC_CHANNELS (asked at 2 Hz) to echo the probe
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
@@ -347,6 +349,9 @@ class Runner:
         s.override_rate = self.options.rate
         self._send_neutral()
         self._pump_for(NEUTRAL_HOLD)
+        self._prove_overrides()
+        self._send_neutral()
+        self._pump_for(NEUTRAL_HOLD)
         for n in range(1, CHANNELS + 1):
             name = f"SERVO{n}_FUNCTION"
             _, ptype = self.saved_functions[name]
@@ -361,6 +366,25 @@ class Runner:
         if not s.arm(True):
             raise Abort("arming failed: the vehicle refused or did not confirm it")
         self.say("armed in MANUAL")
+
+    def _prove_overrides(self) -> None:
+        """ArduSub takes overrides only from its GCS sysid, and none with RC_OVERRIDE_TIME = 0: before any output
+        is switched, hold a probe value inside every T200 dead band (no thrust, whatever drives the outputs) until
+        RC_CHANNELS shows it on all eight channels."""
+        s = self.session
+        s.send_override([OVERRIDE_PROBE] * CHANNELS)
+        deadline = time.monotonic() + s.clock.wall_seconds(PROBE_WAIT) + 0.5
+        while time.monotonic() < deadline:
+            self._interrupt()
+            for msg, _ in s.poll(0.02):
+                self._track(msg)
+                if msg.get_type() == "RC_CHANNELS" and all(
+                        getattr(msg, f"chan{i}_raw") == OVERRIDE_PROBE for i in range(1, CHANNELS + 1)):
+                    self.say("RC overrides accepted by the vehicle (RC_CHANNELS echoes them)")
+                    return
+        raise Abort(f"the vehicle does not apply our RC overrides (RC_CHANNELS never showed {OVERRIDE_PROBE} us): "
+                    f"check that sysid {s.sysid} is its GCS sysid (MAV_GCS_SYSID / SYSID_MYGCS) and that "
+                    "RC_OVERRIDE_TIME is not 0")
 
     # -- the loop --------------------------------------------------------------------------------------------
 

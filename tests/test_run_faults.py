@@ -188,3 +188,19 @@ def test_outputs_left_on_passthrough_are_made_neutral_before_anything_else(tmp_p
         finally:
             gcs.close()
     assert "already on RCIN passthrough" in run.output
+
+
+def test_overrides_the_vehicle_ignores_stop_the_run_before_any_output_is_switched(tmp_path):
+    """RC_OVERRIDE_TIME = 0 (ArduSub then ignores every override): the runner must not switch the outputs to
+    passthrough and arm a vehicle it cannot command."""
+    mission = short_mission(tmp_path, goto_x=0.4, hold=1.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--param", "RC_OVERRIDE_TIME=0")
+    with _runner(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 1, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "the vehicle does not apply our RC overrides" in run.output
+    assert "SERVO1..8_FUNCTION set to RCIN1..8 passthrough" not in run.output
