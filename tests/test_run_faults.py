@@ -38,17 +38,23 @@ def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):
     assert "RC overrides on channels 1-8 released" in run.output
 
 
-def test_a_limit_crossed_aborts_and_restores(tmp_path):
-    mission = short_mission(tmp_path, limits="limits: {max_depth: 3.0}")
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with _runner(bridge, mission, "--max-depth", "0.5") as run, bridge:    # the flag overrides the mission
+def _aborted_and_left_safe(tmp_path, mission, bridge_args: tuple[str, ...], *runner_args: str) -> str:
+    """Run against a bridge started with `bridge_args`; the run must abort (exit 1) and leave the vehicle safe."""
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", *bridge_args)
+    with _runner(bridge, mission, *runner_args) as run, bridge:
         gcs = checker(checker_port)
         try:
             assert run.wait() == 1, run.output
             assert_left_safe(gcs)
         finally:
             gcs.close()
-    assert "limit crossed: depth" in run.output and "> max_depth 0.5 m" in run.output
+    return run.output
+
+
+def test_a_limit_crossed_aborts_and_restores(tmp_path):
+    mission = short_mission(tmp_path, limits="limits: {max_depth: 3.0}")
+    output = _aborted_and_left_safe(tmp_path, mission, (), "--max-depth", "0.5")   # the flag overrides the mission
+    assert "limit crossed: depth" in output and "> max_depth 0.5 m" in output
 
 
 def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
@@ -194,13 +200,6 @@ def test_overrides_the_vehicle_ignores_stop_the_run_before_any_output_is_switche
     """RC_OVERRIDE_TIME = 0 (ArduSub then ignores every override): the runner must not switch the outputs to
     passthrough and arm a vehicle it cannot command."""
     mission = short_mission(tmp_path, goto_x=0.4, hold=1.0)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--param", "RC_OVERRIDE_TIME=0")
-    with _runner(bridge, mission) as run, bridge:
-        gcs = checker(checker_port)
-        try:
-            assert run.wait() == 1, run.output
-            assert_left_safe(gcs)
-        finally:
-            gcs.close()
-    assert "the vehicle does not apply our RC overrides" in run.output
-    assert "SERVO1..8_FUNCTION set to RCIN1..8 passthrough" not in run.output
+    output = _aborted_and_left_safe(tmp_path, mission, ("--param", "RC_OVERRIDE_TIME=0"))
+    assert "the vehicle does not apply our RC overrides" in output
+    assert "SERVO1..8_FUNCTION set to RCIN1..8 passthrough" not in output
