@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.thrusters import Allocator, AllocationInfo, allocation_matrix, load_t200, thrusts_to_pwms
+from rov_mav.thrusters import Allocator, AllocationInfo, load_t200, thrusts_to_pwms
 
 VOLTAGE_STEP = 0.1        # V: rebuild the allocator when the battery moved this much
 DEFAULT_VOLTAGE = 16.0    # V: until the vehicle reports one (a charged 4S pack under load)
@@ -23,10 +23,10 @@ class Actuation:
     """`command(tau)` -> (thrusts (8,) N, PWMs (8,) us as sent, AllocationInfo)."""
 
     def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE):
-        self.matrix = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions)
+        self.vehicle = vehicle
         self.max_thrust = max_thrust
         self.t200 = load_t200()
-        self.directions = np.ones(self.matrix.shape[1])
+        self.directions = np.ones(len(vehicle.thruster_positions))
         self.voltage = float("nan")
         self.peak_voltage = 0.0
         self.pwm_range = (1100.0, 1900.0)
@@ -42,10 +42,7 @@ class Actuation:
         if abs(voltage - self.voltage) < VOLTAGE_STEP:
             return
         self.voltage = float(voltage)
-        cap = np.inf if self.max_thrust is None else self.max_thrust
-        n = self.matrix.shape[1]
-        self.allocator = Allocator(self.matrix, np.full(n, -min(self.t200.max_reverse(voltage), cap)),
-                                   np.full(n, min(self.t200.max_forward(voltage), cap)))
+        self.allocator = Allocator.for_vehicle(self.vehicle, voltage, self.t200, max_thrust=self.max_thrust)
 
     def set_directions(self, directions: np.ndarray) -> None:
         """MOT_1..8_DIRECTION of the vehicle (+1 or -1 each)."""

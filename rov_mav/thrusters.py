@@ -275,15 +275,18 @@ class Allocator:
 
     @classmethod
     def for_vehicle(
-        cls, vehicle: Vehicle, voltage: float, t200: T200 | None = None, weights: np.ndarray | None = None
+        cls, vehicle: Vehicle, voltage: float, t200: T200 | None = None, weights: np.ndarray | None = None,
+        max_thrust: float | None = None,
     ) -> "Allocator":
-        """Allocator for `vehicle`'s thrusters, limited to the T200's thrust range at `voltage` V."""
+        """Allocator for `vehicle`'s thrusters, limited to the T200's thrust range at `voltage` V, and to
+        `max_thrust` N either way when given."""
         t200 = t200 or load_t200()
         n = len(vehicle.thruster_positions)
+        cap = np.inf if max_thrust is None else max_thrust
         return cls(
             allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions),
-            np.full(n, -t200.max_reverse(voltage)),
-            np.full(n, t200.max_forward(voltage)),
+            np.full(n, -min(t200.max_reverse(voltage), cap)),
+            np.full(n, min(t200.max_forward(voltage), cap)),
             weights,
         )
 

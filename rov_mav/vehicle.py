@@ -51,12 +51,16 @@ class _VehicleSchema(config.StrictModel):
     size: Annotated[list[Positive], Field(min_length=3, max_length=3)]
     thrusters: _ThrusterSchema
 
-    @model_validator(mode="after")
-    def _inertia_positive_definite(self) -> "_VehicleSchema":
+    @property
+    def inertia_tensor(self) -> np.ndarray:
+        """(3, 3) about the CG, from the moments and the products (Ixy, Iyz, Ixz)."""
         ixy, iyz, ixz = self.inertia_products
         ix, iy, iz = self.inertia
-        tensor = np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]])
-        if np.linalg.eigvalsh(tensor).min() <= 0:
+        return np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]])
+
+    @model_validator(mode="after")
+    def _inertia_positive_definite(self) -> "_VehicleSchema":
+        if np.linalg.eigvalsh(self.inertia_tensor).min() <= 0:
             raise ValueError("inertia: the inertia tensor is not positive definite")
         return self
 
@@ -154,15 +158,13 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
     """Load and validate a vehicle file (default: the shipped BlueROV2 Heavy); ConfigError on any bad entry."""
     path = Path(path) if path is not None else default_vehicle_path()
     s = config.load(_VehicleSchema, path)
-    ixy, iyz, ixz = s.inertia_products
-    ix, iy, iz = s.inertia
     return Vehicle(
         name=s.name,
         mass=s.mass,
         volume=s.volume,
         water_density=s.water_density,
         gravity=s.gravity,
-        inertia_tensor=np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]]),
+        inertia_tensor=s.inertia_tensor,
         center_of_gravity=np.array(s.center_of_gravity, dtype=float),
         center_of_buoyancy=np.array(s.center_of_buoyancy, dtype=float),
         added_mass=np.array(s.added_mass, dtype=float),
