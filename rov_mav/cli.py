@@ -15,7 +15,7 @@ SUBCOMMAND_MODULES = (
     "rov_mav.commands.simulate",
     "rov_mav.commands.tune",
     "rov_mav.commands.run",
-    "sim_bridge.cli",
+    "rov_mav.commands.sim_bridge",
 )
 
 

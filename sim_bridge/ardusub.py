@@ -5,10 +5,15 @@ ground station (STATUSTEXT) is queued in `texts` for the caller to send.
 
 Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.md):
 - RC overrides only from the GCS sysid; they count as GCS heartbeats and as pilot input.
+- MANUAL_CONTROL (ArduSub 4.5, ArduSub/GCS_Mavlink.cpp): only from the GCS sysid and with `target` equal to this
+  vehicle's sysid (0 is not accepted); its axes become overrides of channels 1-11 (`joystick`) with the same expiry,
+  and it counts as pilot input and as a GCS heartbeat. Buttons are ignored (no arming, modes, lights or trims).
+- The vehicle's own sysid is fixed at boot (ArduPilot applies SYSID_THISMAV / MAV_SYSID on reboot: measured).
 - SERVOn_FUNCTION 51..66 (RCIN1..16) passes RC input n straight to output n, whether armed or not, without motor
   directions; with no RC receiver the output keeps its last value after the override ends.
 - SERVOn_FUNCTION 33..40 (motors 1..8) come from the vectored_6dof mixer of the pilot channels, only when armed
-  (1500 us when disarmed); in STABILIZE, ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, on
+  (1500 us when disarmed), limited to MOT_PWM_MIN..MAX, or RC3_MIN..MAX when those two are invalid
+  (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE, ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, on
   the state estimate passed to `update`.
 - Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
   channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
@@ -21,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_bridge import mixer
+from sim_bridge import joystick, mixer
 from sim_bridge.params import Params
 from sim_bridge.rc import RCInput
 from sim_bridge.stabilize import ASSISTED, Holds
@@ -47,6 +52,7 @@ _RC_RANGE = [(f"RC{ch + 1}_MIN", f"RC{ch + 1}_TRIM", f"RC{ch + 1}_MAX") for ch i
 _MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, 9)]
 _SERVO_FUNCTION = [f"SERVO{n}_FUNCTION" for n in range(1, SERVOS + 1)]
 _NEUTRAL = np.full(8, 1500, dtype=np.int32)
+UINT16_MAX = 65535
 
 
 class ArduSub:
@@ -54,6 +60,10 @@ class ArduSub:
 
     def __init__(self, params: Params, t: float = 0.0):
         self.params = params
+        self.sysid = params.sysid
+        self.joystick_gain = joystick.joystick_gain(params["JS_GAIN_DEFAULT"], params["JS_GAIN_MIN"],
+                                                    params["JS_GAIN_MAX"], params["JS_GAIN_STEPS"])
+        self._lights = (int(params["RC9_MIN"]), int(params["RC10_MIN"]))
         self.rc = RCInput()
         self.mode = MODES["MANUAL"]
         self.armed = False
@@ -82,6 +92,19 @@ class ArduSub:
         if sysid != self.params.gcs_sysid:
             return False
         self.rc.apply_message(values, t)
+        self._pilot_seen = t
+        self._gcs_seen = t
+        return True
+
+    def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float) -> bool:
+        """MANUAL_CONTROL's (x, y, z, r, s, t) from `sysid` to `target`; False (ignored) unless from the GCS sysid
+        and aimed at this vehicle."""
+        if sysid != self.params.gcs_sysid or target != self.sysid:
+            return False
+        values = joystick.rc_channels(*axes, gain=self.joystick_gain, throttle_gain=self.params["JS_THR_GAIN"],
+                                      lights=self._lights)
+        for ch, value in enumerate(values):
+            self.rc.set_override(ch, value, t)
         self._pilot_seen = t
         self._gcs_seen = t
         return True
@@ -117,8 +140,7 @@ class ArduSub:
         self._held = None
         if self.armed and self.mode in ASSISTED and state is not None:
             axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt)
-            self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), self.params["MOT_PWM_MIN"],
-                                      self.params["MOT_PWM_MAX"])
+            self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), *self._pwm_range())
 
     def _pilot_input_check(self, t: float) -> None:
         if self.params["FS_PILOT_INPUT"] == 0:
@@ -173,11 +195,15 @@ class ArduSub:
             return self._held
         key = (self.rc.radio_in[:6].tobytes(), self.params.version)
         if key != self._mix_key:                 # the mixer only when the pilot channels or parameters changed
-            p = self.params
-            self._mixed = mixer.to_pwm(mixer.mix(self.pilot_axes(), self._directions()), p["MOT_PWM_MIN"],
-                                       p["MOT_PWM_MAX"])
+            self._mixed = mixer.to_pwm(mixer.mix(self.pilot_axes(), self._directions()), *self._pwm_range())
             self._mix_key = key
         return self._mixed
+
+    def _pwm_range(self) -> tuple[float, float]:
+        p = self.params
+        if 1 <= p["MOT_PWM_MIN"] < p["MOT_PWM_MAX"]:
+            return p["MOT_PWM_MIN"], p["MOT_PWM_MAX"]
+        return p["RC3_MIN"], p["RC3_MAX"]
 
     def _directions(self) -> np.ndarray:
         return np.array([-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION])
@@ -194,7 +220,7 @@ class ArduSub:
         out = np.zeros(SERVOS, dtype=np.int32)
         out[self._motor] = self.motor_pwm()[self._motor_index]
         out[self._rcin] = self.rc.radio_in[self._rcin_index]
-        return out
+        return np.clip(out, 0, UINT16_MAX, out=out)
 
     # -- status ----------------------------------------------------------------------------------------------
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rov_mav.environment import Environment
+    from rov_mav.model.environment import Environment
 
 DEFAULT_OUT = "udpout:127.0.0.1:14550"
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 0.0)   # lat deg, lon deg, surface altitude m (ArduPilot SITL's home)

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 INT8, INT16, INT32, REAL32 = 2, 4, 6, 9          # MAV_PARAM_TYPE
 _LIMITS = {INT8: (-128, 127), INT16: (-32768, 32767), INT32: (-2**31, 2**31 - 1)}
 
@@ -39,7 +41,8 @@ class Names:
     stream_prefix: tuple[str, ...]   # per channel, e.g. ("SR0_", ...) or ("MAV1_", ...)
 
     def stream(self, channel: int, group: str) -> str:
-        return f"{self.stream_prefix[channel]}{group}"
+        """The rate parameter of `group` on link `channel`; links past the last set share it."""
+        return f"{self.stream_prefix[min(channel, CHANNELS - 1)]}{group}"
 
 
 def names_for(firmware: str) -> Names:
@@ -60,6 +63,12 @@ def _table(names: Names) -> list[Spec]:
         Spec("MOT_PWM_MAX", 1900, INT16),
         *(Spec(f"MOT_{i}_DIRECTION", 1, INT8) for i in range(1, 9)),
         Spec("RC_OVERRIDE_TIME", 3.0, REAL32),
+        # The pilot's joystick (MANUAL_CONTROL), defaults measured on ArduSub 4.5.3 SITL.
+        Spec("JS_GAIN_DEFAULT", 0.5, REAL32),
+        Spec("JS_GAIN_MAX", 1.0, REAL32),
+        Spec("JS_GAIN_MIN", 0.25, REAL32),
+        Spec("JS_GAIN_STEPS", 4, INT8),
+        Spec("JS_THR_GAIN", 1.0, REAL32),
     ]
     for ch in range(1, 17):
         specs += [Spec(f"RC{ch}_MIN", 1100, INT16), Spec(f"RC{ch}_MAX", 1900, INT16),
@@ -83,12 +92,11 @@ def _table(names: Names) -> list[Spec]:
 
 
 def stored_value(value: float, ptype: int) -> float:
-    """The value ArduPilot stores for a PARAM_SET of `value`: integers rounded half-away-ish and saturated.
-
-    ArduPilot adds 0.01 (away from zero) and truncates, then clamps to the storage type; documented ranges are not
-    enforced."""
+    """The value ArduPilot stores for a PARAM_SET of `value`: a float32, or an integer rounded half-away-ish and
+    saturated (ArduPilot adds 0.01 away from zero and truncates, then clamps to the storage type; documented ranges
+    are not enforced). A finite value beyond float32 becomes infinite here, and `Params.set` refuses it."""
     if ptype == REAL32:
-        return float(value)
+        return float(np.float32(value))
     low, high = _LIMITS[ptype]
     nudged = value + (0.01 if value >= 0 else -0.01)
     return float(int(min(max(nudged, low), high)))
@@ -118,10 +126,14 @@ class Params:
         return self._index[name]
 
     def set(self, name: str, value: float) -> float | None:
-        """Apply a PARAM_SET as ArduSub does: the stored value, or None (no reply) for unknown names or NaN/inf."""
+        """Apply a PARAM_SET as ArduSub does: the stored value, or None (nothing stored, no reply) for unknown names,
+        NaN or infinity (libraries/GCS_MAVLink/GCS_Param.cpp, `handle_param_set`) and values beyond float32."""
         if name not in self._index or not math.isfinite(value):
             return None
-        stored = stored_value(value, self.specs[self._index[name]].ptype)
+        with np.errstate(over="ignore"):
+            stored = stored_value(value, self.specs[self._index[name]].ptype)
+        if not math.isfinite(stored):
+            return None
         self._values[name] = stored
         self.version += 1
         return stored
@@ -135,4 +147,4 @@ class Params:
         return int(self._values[self.names.sysid])
 
     def stream_rate(self, channel: int, group: str) -> float:
-        return self._values[self.names.stream(min(channel, CHANNELS - 1), group)]
+        return self._values[self.names.stream(channel, group)]

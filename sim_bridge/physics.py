@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from rov_mav.thrusters import T200, allocation_matrix
-from rov_mav.vehicle import Vehicle
+from rov_mav.model.thrusters import T200, allocation_matrix
+from rov_mav.model.vehicle import Vehicle
 from sim_bridge.battery import Battery
 
 VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery voltage rounded to this

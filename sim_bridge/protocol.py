@@ -13,8 +13,13 @@ from collections.abc import Callable
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim_bridge import schedule, telemetry
-from sim_bridge.ardusub import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_FAILED, MAV_RESULT_UNSUPPORTED,
-                                ArduSub)
+from sim_bridge.ardusub import (
+    MAV_RESULT_ACCEPTED,
+    MAV_RESULT_DENIED,
+    MAV_RESULT_FAILED,
+    MAV_RESULT_UNSUPPORTED,
+    ArduSub,
+)
 from sim_bridge.params import STREAM_GROUPS, Params
 from sim_bridge.schedule import Scheduler
 from sim_bridge.telemetry import ENCODER, Snapshot
@@ -38,8 +43,7 @@ class Protocol:
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
         """Replies to one message received on link `channel` at sim time t."""
-        target = getattr(msg, "target_system", 0)
-        if target not in (0, self.params.sysid):
+        if not addressed_here(msg, self.vehicle.sysid):
             return []
         kind = msg.get_type()
         sysid = msg.get_srcSystem()
@@ -47,6 +51,8 @@ class Protocol:
             self.vehicle.gcs_heartbeat(sysid, t)
         elif kind == "RC_CHANNELS_OVERRIDE":
             self.vehicle.rc_override(sysid, [getattr(msg, f"chan{i}_raw") for i in range(1, 19)], t)
+        elif kind == "MANUAL_CONTROL":
+            self.vehicle.manual_control(sysid, msg.target, (msg.x, msg.y, msg.z, msg.r, msg.s, msg.t), t)
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg, scheduler, t)
         elif kind == "SET_MODE":
@@ -82,28 +88,34 @@ class Protocol:
         elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
             result = self._set_mode(int(msg.param1), int(msg.param2))
         elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
-            name = telemetry.NAME_OF_ID.get(int(msg.param1))
+            name = telemetry.NAME_OF_ID.get(_message_id(msg.param1))
             result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
             if name is not None:
                 scheduler.set_interval(name, msg.param2, t)
         elif cmd == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
-            name = telemetry.NAME_OF_ID.get(int(msg.param1))
-            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
-            if name is not None:
-                interval = scheduler.intervals[name]
-                replies.append((ENCODER.message_interval_encode(int(msg.param1),
-                                                                int(interval * 1e6) if interval else -1), False))
+            result, reply = self._get_interval(_message_id(msg.param1), scheduler)
+            replies.append((reply, False))
         elif cmd in (mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
-            msg_id = int(msg.param1) if cmd == mavlink.MAV_CMD_REQUEST_MESSAGE else \
+            msg_id = _message_id(msg.param1) if cmd == mavlink.MAV_CMD_REQUEST_MESSAGE else \
                 mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
             name = telemetry.NAME_OF_ID.get(msg_id)
-            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
+            result = MAV_RESULT_FAILED if name is None else MAV_RESULT_ACCEPTED
             if name is not None:
                 replies.append((telemetry.BUILDERS[name](self.snapshot()), False))
         else:
             result = MAV_RESULT_UNSUPPORTED
         ack = ENCODER.command_ack_encode(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         return [(ack, False)] + replies
+
+    @staticmethod
+    def _get_interval(msg_id: int | None, scheduler: Scheduler):
+        """`GCS_MAVLINK::handle_command_get_message_interval`: (MAV_RESULT, MESSAGE_INTERVAL); interval 0 = not
+        available (FAILED, also for ids past uint16), -1 = not sent, else the interval in us."""
+        name = telemetry.NAME_OF_ID.get(msg_id)
+        if name is None:
+            return MAV_RESULT_FAILED, ENCODER.message_interval_encode((msg_id or 0) & 0xFFFF, 0)
+        interval = scheduler.intervals[name]
+        return MAV_RESULT_ACCEPTED, ENCODER.message_interval_encode(msg_id, round(interval * 1e6) if interval else -1)
 
     def _set_mode(self, base_mode: int, custom_mode: int) -> int:
         """ArduPilot's answer to a mode change: custom modes only; FAILED for a mode it cannot enter."""
@@ -119,8 +131,10 @@ class Protocol:
                                           index if reported_index is None else reported_index)
 
     def _param_read(self, msg) -> list[Reply]:
-        if msg.param_index >= 0:
-            index = msg.param_index if msg.param_index < len(self.params) else None
+        """By index unless the index is -1 (then by name), as `GCS_MAVLINK::handle_param_request_read`; no reply
+        when there is no such parameter."""
+        if msg.param_index != -1:
+            index = msg.param_index if 0 <= msg.param_index < len(self.params) else None
         else:
             name = _param_name(msg.param_id)
             index = self.params.index(name) if name in self.params else None
@@ -134,9 +148,13 @@ class Protocol:
         return [(self._param_value(self.params.index(name), reported_index=65535), True)]
 
     def _request_data_stream(self, msg, channel: int, t: float) -> None:
-        groups = STREAM_GROUPS[:8] if msg.req_stream_id == 0 else \
+        """`GCS_MAVLINK::handle_request_data_stream`: start_stop 1 sets the rate (uint16 read as int16), 0 sets 0,
+        anything else is ignored; stream 0 sets every group but PARAMS, unknown streams nothing."""
+        if msg.start_stop not in (0, 1):
+            return
+        groups = tuple(g for g in STREAM_GROUPS if g != "PARAMS") if msg.req_stream_id == 0 else \
             schedule.DATA_STREAM_GROUPS.get(msg.req_stream_id, ())
-        rate = msg.req_message_rate if msg.start_stop else 0
+        rate = (msg.req_message_rate + 32768) % 65536 - 32768 if msg.start_stop else 0
         for group in groups:
             self.params.set(self.params.names.stream(channel, group), rate)
         self.on_params_changed(t)
@@ -155,6 +173,21 @@ class Protocol:
         body = struct.pack("<HBBBBBBI", (seq + 1) & 0xFFFF, session, reply, size, opcode, 0, 0, 0) + data
         return ENCODER.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
                                                      list(body.ljust(251, b"\0")))
+
+
+def addressed_here(msg, sysid: int, compid: int = 1) -> bool:
+    """Is `msg` for this autopilot (libraries/GCS_MAVLink/MAVLink_routing.cpp, `check_and_forward`)? Not if it is our
+    own (sysid, compid) looped back; else if its target system (MANUAL_CONTROL: `target`) is 0 or ours and its target
+    component 0 or ours; messages without targets are for everyone."""
+    if msg.get_srcSystem() == sysid and msg.get_srcComponent() == compid:
+        return False
+    target = msg.target if msg.get_type() == "MANUAL_CONTROL" else getattr(msg, "target_system", 0)
+    return target in (0, sysid) and getattr(msg, "target_component", 0) in (0, compid)
+
+
+def _message_id(value: float) -> int | None:
+    """A command's float param as a MAVLink message id (None outside uint32, where C's conversion is undefined)."""
+    return int(value) if 0 <= value < 2**32 else None
 
 
 def _param_name(raw) -> str:

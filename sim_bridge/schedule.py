@@ -1,7 +1,11 @@
 """Per-link message scheduling on the simulated clock: stream rates, SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM.
 
-A message's interval is, in order: the one set by MAV_CMD_SET_MESSAGE_INTERVAL on this link (-1 there = off), else
-1 / its stream group's rate parameter (SRn_* / MAVn_*), else 1 s for HEARTBEAT, else off.
+A message's interval is, in order: the one set by MAV_CMD_SET_MESSAGE_INTERVAL on this link, else its stream
+group's rate parameter (SRn_* / MAVn_*), else 1 s for HEARTBEAT, else off. As in ArduPilot
+(libraries/GCS_MAVLink/GCS_Common.cpp) intervals are whole milliseconds: `set_message_interval` maps the requested
+interval (int32 us) 0 to the default, -1 to off, anything else below 1000 to 1 ms and above 60 s to 60 s;
+`get_interval_for_stream` maps an int16 rate r to 1000 / r ms (integer division: 0, i.e. off, above 1000 Hz; a
+negative rate wraps to a huge unsigned value and so gives 60 s), r = 0 to off.
 """
 
 from __future__ import annotations
@@ -23,6 +27,8 @@ GROUP_OF = {name: group for group, names in STREAMS.items() for name in names}
 DATA_STREAM_GROUPS = {1: ("RAW_SENS",), 2: ("EXT_STAT",), 3: ("RC_CHAN",), 4: ("RAW_CTRL",), 6: ("POSITION",),
                       10: ("EXTRA1",), 11: ("EXTRA2",), 12: ("EXTRA3",)}
 HEARTBEAT_INTERVAL = 1.0
+MAX_INTERVAL_MS = 60000
+INT32_MIN, INT32_MAX = -2**31, 2**31 - 1
 EPS = 1e-9                      # s: tolerance for float sums of intervals against step times
 
 
@@ -43,15 +49,15 @@ class Scheduler:
         if name == "HEARTBEAT":
             return HEARTBEAT_INTERVAL
         group = GROUP_OF.get(name)
-        rate = self.stream_rate(group) if group else 0.0
-        return 1.0 / rate if rate > 0 else 0.0
+        return stream_interval_ms(int(self.stream_rate(group)) if group else 0) / 1000.0
 
     def set_interval(self, name: str, interval_us: float, t: float) -> None:
-        """MAV_CMD_SET_MESSAGE_INTERVAL: 0 = back to the default, < 0 = off, else the interval in us."""
-        if interval_us == 0:
+        """MAV_CMD_SET_MESSAGE_INTERVAL's param2 (finite, us): 0 = back to the default, -1 = off, else as ArduPilot."""
+        ms = requested_interval_ms(interval_us)
+        if ms is None:
             self.explicit.pop(name, None)
         else:
-            self.explicit[name] = 0.0 if interval_us < 0 else interval_us * 1e-6
+            self.explicit[name] = ms / 1000.0
         self.refresh(t)
 
     def refresh(self, t: float) -> None:
@@ -76,3 +82,26 @@ class Scheduler:
                 self._next[name] = nxt if nxt > t + EPS else t + interval
         self._earliest = min(self._next.values())
         return out
+
+
+def stream_interval_ms(rate: int) -> int:
+    """`GCS_MAVLINK::get_interval_for_stream`: the interval (ms, 0 = off) of an int16 stream rate in Hz."""
+    if rate == 0:
+        return 0
+    ms = 1000 // rate if rate > 0 else MAX_INTERVAL_MS + 1
+    return min(ms, MAX_INTERVAL_MS)
+
+
+def requested_interval_ms(interval_us: float) -> int | None:
+    """`GCS_MAVLINK::set_message_interval` on a finite param2: the interval in ms (0 = off), None = the default.
+
+    The float is converted to int32 saturating, as Pixhawk's ARM FPU does (the x86 SITL build traps on an
+    out-of-range conversion and aborts: measured on ArduSub 4.5.3 SITL with 3.6e9)."""
+    us = int(min(max(interval_us, INT32_MIN), INT32_MAX))
+    if us == 0:
+        return None
+    if us == -1:
+        return 0
+    if us < 1000:
+        return 1
+    return min(us // 1000, MAX_INTERVAL_MS)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.dynamics import rotation
+from rov_mav.model.dynamics import rotation
 
 ENCODER = mavlink.MAVLink(None)
 EARTH_RADIUS = 6378137.0                 # m

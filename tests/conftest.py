@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rov_mav.vehicle import load_vehicle
+from rov_mav.model.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "missions"

@@ -10,10 +10,10 @@ import numpy as np
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
-from rov_mav.simulation import Trace
+from rov_mav.flight.tick import TickRecord
+from rov_mav.model.vehicle import Vehicle
+from rov_mav.offline.simulation import Trace
 from rov_mav.telemetry import TIMELINE, trace_columns
-from rov_mav.tick import TickRecord
-from rov_mav.vehicle import Vehicle
 
 
 def tick_records(trace: Trace, vehicle: Vehicle, t0: float = 0.0) -> list[TickRecord]:

@@ -101,6 +101,7 @@ class Gcs:
         self.rate = rate
         self.heartbeats = True
         self.override: list[int] | None = None
+        self.joystick: tuple[int, int, int, int] | None = None      # MANUAL_CONTROL x, y, z, r
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -119,6 +120,10 @@ class Gcs:
         values = list(channels) + [65535] * (8 - len(channels)) if len(channels) < 8 else list(channels)
         values += [0] * (18 - len(values))
         self.send("rc_channels_override", 1, 1, *values)
+
+    def manual_control(self, x: int, y: int, z: int, r: int, target: int = 1) -> None:
+        """MANUAL_CONTROL as a pilot's joystick sends it (z: 0..1000, 500 = neutral; no buttons)."""
+        self.send("manual_control", target, x, y, z, r, 0)
 
     def request(self, send, kind: str, cond, timeout: float = WAIT):
         """`send()` until a `kind` message satisfying `cond` answers, resending every second as ground stations do.
@@ -205,7 +210,8 @@ class Gcs:
     # -- background pump -------------------------------------------------------------------------------------
 
     def start_pump(self) -> None:
-        """Send heartbeats (if `heartbeats`) and `override` (if set) at `rate` simulated Hz until closed."""
+        """Send heartbeats (if `heartbeats`), `override` and `joystick` (if set) at `rate` simulated Hz until
+        closed."""
         self._thread = threading.Thread(target=self._pump, daemon=True)
         self._thread.start()
 
@@ -216,6 +222,8 @@ class Gcs:
                 self.heartbeat()
             if self.override is not None:
                 self.rc_override(self.override)
+            if self.joystick is not None:
+                self.manual_control(*self.joystick)
 
     def close(self) -> None:
         self._stop.set()

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from test_bridge_gcs import BridgeThread, Gcs, mavutil
 
-from rov_mav.environment import Environment
-from rov_mav.plant import Plant
-from rov_mav.thrusters import load_t200
-from rov_mav.vehicle import load_vehicle
+from rov_mav.model.environment import Environment
+from rov_mav.model.plant import Plant
+from rov_mav.model.thrusters import load_t200
+from rov_mav.model.vehicle import load_vehicle
 from sim_bridge.ardusub import MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.params import Params

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from test_bridge_gcs import BridgeThread, Gcs, mavutil
 
-from rov_mav.thrusters import Allocator, allocation_matrix, load_t200
+from rov_mav.model.thrusters import Allocator, allocation_matrix, load_t200
 
 SPEEDUP = 10.0
 mav = mavutil.mavlink

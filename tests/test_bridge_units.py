@@ -9,16 +9,17 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.thrusters import allocation_matrix, load_t200
+from rov_mav.model.thrusters import allocation_matrix, load_t200
 from sim_bridge import mixer
-from sim_bridge.ardusub import MODES, MAV_RESULT_ACCEPTED, ArduSub
+from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
 from sim_bridge.battery import Battery
+from sim_bridge.joystick import joystick_gain, rc_channels
 from sim_bridge.pacing import Pacer
 from sim_bridge.params import INT8, INT16, REAL32, Params, stored_value
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.rc import RCInput
-from sim_bridge.schedule import Scheduler
+from sim_bridge.schedule import Scheduler, requested_interval_ms, stream_interval_ms
 
 GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
 STEP = 0.0025
@@ -57,11 +58,13 @@ def test_param_names_follow_the_firmware():
 def test_param_set_stores_like_ardupilot():
     assert stored_value(51.4, INT16) == 51 and stored_value(-1.5, INT16) == -1 and stored_value(2.996, INT8) == 3
     assert stored_value(1000, INT8) == 127 and stored_value(-1e6, INT16) == -32768
-    assert stored_value(0.123, REAL32) == 0.123
+    assert stored_value(0.123, REAL32) == float(np.float32(0.123)) != 0.123   # a float32, as on the wire
     p = Params()
     assert p.set("RC_OVERRIDE_TIME", 500.0) == 500.0          # documented range not enforced
     assert p.set("NO_SUCH_PARAM", 1.0) is None
     assert p.set("FS_GCS_TIMEOUT", math.nan) is None and p["FS_GCS_TIMEOUT"] == 5.0
+    assert p.set("FS_GCS_TIMEOUT", 1e39) is None and p["FS_GCS_TIMEOUT"] == 5.0   # beyond float32: refused
+    assert p.set("FS_GCS_ENABLE", 1e39) == 127
 
 
 # -- RC input --------------------------------------------------------------------------------------------------
@@ -249,7 +252,8 @@ def test_default_rates_and_message_intervals():
     names = ("HEARTBEAT", "ATTITUDE", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "ATTITUDE_QUATERNION", "VFR_HUD")
     s = Scheduler(names, lambda g: params.stream_rate(0, g))
     counts = count_due(s, 10.0)
-    assert counts == {"HEARTBEAT": 10, "ATTITUDE": 100, "LOCAL_POSITION_NED": 30, "SERVO_OUTPUT_RAW": 20,
+    # 3 Hz is every 333 ms (whole milliseconds, as ArduPilot): 31 in 10 s
+    assert counts == {"HEARTBEAT": 10, "ATTITUDE": 100, "LOCAL_POSITION_NED": 31, "SERVO_OUTPUT_RAW": 20,
                       "VFR_HUD": 100}
     s.set_interval("ATTITUDE", 1e6 / 50, 0.0)
     s.set_interval("ATTITUDE_QUATERNION", 1e6 / 100, 0.0)
@@ -373,3 +377,83 @@ def test_thrust_lags_the_command_and_maps_to_the_wrench(vehicle):
     assert plant.taus[-1][2] == pytest.approx(4 * physics.thrusts[4]) and np.allclose(plant.taus[-1][[0, 1, 5]], 0)
     physics.step(np.zeros(8, dtype=int))                       # no pulse: the ESCs stop, not full reverse
     assert np.all(physics.thrusts >= 0)
+
+
+# -- ArduSub's field limits ------------------------------------------------------------------------------------
+
+
+def test_interval_limits_follow_ardupilot():
+    assert [requested_interval_ms(us) for us in (0, -1, -5, 999, 20000, 3.6e9, -3.6e9)] == \
+        [None, 0, 1, 1, 20, 60000, 1]
+    assert [stream_interval_ms(r) for r in (0, 3, 10, 1000, 1001, -25536)] == [0, 333, 100, 1, 0, 60000]
+
+
+def test_hostile_fields_are_clamped_or_refused(protocol):
+    proto, sub, params, scheduler, _ = protocol
+    proto.handle(decode(GCS.command_long_encode(1, 1, 511, 0, 30, 3.6e9, 0, 0, 0, 0, 0)), 0, scheduler, 0.0)
+    [(ack, _), (interval, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 30, 0, 0, 0, 0, 0, 0)),
+                                             0, scheduler, 0.0)
+    assert (ack.result, interval.message_id, interval.interval_us) == (0, 30, 60_000_000)
+    [(ack, _), (interval, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 70000, 0, 0, 0, 0, 0, 0)),
+                                             0, scheduler, 0.0)
+    assert (ack.result, interval.interval_us) == (mavlink.MAV_RESULT_FAILED, 0)
+    proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 40000, 1)), 6, scheduler, 0.0)
+    assert params["MAV4_EXTRA1"] == -25536                      # uint16 read as int16; link 6 uses the last set
+    proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 7, 2)), 0, scheduler, 0.0)
+    assert params["MAV1_EXTRA1"] == 10                          # start_stop 2: ignored
+    assert proto.handle(decode(GCS.param_request_read_encode(1, 1, b"MAV1_EXTRA1", -7)), 0, scheduler, 0) == []
+    assert proto.handle(decode(GCS.command_long_encode(1, 5, 400, 0, 1, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0) == []
+    assert not sub.armed                                        # addressed to component 5: not the autopilot's
+    own = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    looped = mavlink.MAVLink(None).decode(bytearray(own.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0,
+                                                                            0).pack(own)))
+    assert proto.handle(looped, 0, scheduler, 0.0) == [] and not sub.armed
+
+
+def test_joystick_maps_like_ardusub_45_sitl():
+    gain = joystick_gain(0.5, 0.25, 1.0, 4)
+    ch = lambda x=0, y=0, z=500, r=0, s=0, t=0: rc_channels(x, y, z, r, s, t, gain, 1.0, (1100, 1100))
+    assert ch() == [1500] * 8 + [1100] * 3
+    assert ch(400, -200, 700, 100) == [1500, 1500, 1580, 1520, 1580, 1460, 1500, 1500, 1100, 1100, 1100]
+    assert ch(1000, -1000, 1000, -1000)[2:6] == [1700, 1300, 1700, 1300]
+    assert ch(32767, -32768, -32768, 32767)[2:6] == [1100, 1900, 1900, 1100]
+    assert ch(-1, 3, 499, -6)[2:6] == [1499, 1498, 1499, 1500]   # truncation toward zero, as measured
+    assert ch(s=100, t=-200)[:2] == [1600, 1300]
+    assert ch(s=32767)[0] == 1100                               # int16 wrap before the clamp, as in C++
+    assert joystick_gain(0.05, 0.25, 1.0, 4) == pytest.approx(0.5) and joystick_gain(2, 0.25, 1.0, 1) == 1.0
+
+
+def test_manual_control_only_from_the_gcs_to_this_vehicle():
+    params = Params()
+    sub = ArduSub(params)
+    axes = (200, 0, 500, 0, 0, 0)
+    assert not sub.manual_control(254, 1, axes, 0.0) and not sub.manual_control(255, 0, axes, 0.0)
+    sub.update(0.1)
+    assert sub.rc.radio_in[4] == 1500
+    assert sub.manual_control(255, 1, axes, 1.0)
+    sub.update(1.0)
+    assert list(sub.rc.radio_in[:11]) == [1500, 1500, 1500, 1500, 1540, 1500, 1500, 1500, 1100, 1100, 1100]
+    assert not sub.failsafe_pilot
+    params.set("FS_PILOT_INPUT", 0)
+    sub.rc.radio_in[4] = 1234                   # still overridden just before RC_OVERRIDE_TIME (3 s) has passed,
+    sub.update(3.9)
+    assert sub.rc.radio_in[4] == 1540
+    sub.rc.radio_in[4] = 1234                   # and no longer after it
+    sub.update(4.1)
+    assert sub.rc.radio_in[4] == 1234
+
+
+def test_invalid_motor_pwm_range_falls_back_to_rc3_and_outputs_fit_uint16():
+    params = Params()
+    sub = ArduSub(params)
+    sub.arm(True)
+    sub.rc.set_override(2, 1900, 0.0)
+    params.set("MOT_PWM_MIN", 1950)                              # min >= max: AP_Motors uses RC3_MIN..MAX
+    sub.update(0.0)
+    assert set(sub.motor_pwm()) == {1100, 1500}                  # full throttle on the verticals
+    params.set("RC3_MAX", -500)
+    params.set("SERVO9_FUNCTION", 59)
+    sub.rc.set_override(8, 65534, 0.0)
+    sub.update(0.0)
+    out = sub.servo_outputs()
+    assert out.min() >= 0 and out.max() <= 65535 and out[8] == 65534

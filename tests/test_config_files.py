@@ -8,12 +8,11 @@ import sys
 import numpy as np
 import pytest
 import yaml
+from conftest import MISSIONS
 
 from rov_mav.config import ConfigError
-from rov_mav.mission import load_mission
-from rov_mav.vehicle import default_vehicle_path, load_vehicle
-
-from conftest import MISSIONS
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.vehicle import default_vehicle_path, load_vehicle
 
 
 def write(tmp_path, name, data):

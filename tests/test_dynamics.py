@@ -6,12 +6,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import random_states
 from scipy.spatial.transform import Rotation
 
-from rov_mav import dynamics, kernel
-
-
-from conftest import random_states
+from rov_mav.model import dynamics, kernel
 
 
 def trig(eta):

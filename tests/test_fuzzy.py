@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import quad
 
 from rov_mav.config import ConfigError
-from rov_mav.fuzzy import MamdaniSystem, default_rules_path, load_fuzzy
+from rov_mav.control.fuzzy import MamdaniSystem, default_rules_path, load_fuzzy
 
 
 def gauss(x, c, w):

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav import kernel
-from rov_mav.environment import Environment
-from rov_mav.plant import Plant
+from rov_mav.model import kernel
+from rov_mav.model.environment import Environment
+from rov_mav.model.plant import Plant
 
 
 def test_plant_steps_match_the_kernel(vehicle):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rov_mav.pso import PSOOptions, minimize
+from rov_mav.offline.pso import PSOOptions, minimize
 
 
 def sphere(x: np.ndarray) -> np.ndarray:

@@ -7,11 +7,16 @@ import json
 import os
 
 os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
-from run_helpers import (SPEEDUP, RunnerProcess, assert_left_safe, bridge_with_checker, checker,  # noqa: E402
-                         servo_outputs)
-
 from conftest import MISSIONS  # noqa: E402
+from pymavlink import mavutil  # noqa: E402
+from run_helpers import (  # noqa: E402
+    SPEEDUP,
+    RunnerProcess,
+    assert_left_safe,
+    bridge_with_checker,
+    checker,
+    servo_outputs,
+)
 
 SQUARE = str(MISSIONS / "square.yaml")
 STEADY_RMS_LIMIT = 0.05       # m

@@ -9,8 +9,19 @@ import threading
 import time
 
 import pytest
-from run_helpers import (SPEEDUP, WAIT, RunnerProcess, armed, assert_left_safe, bridge_with_checker, checker,
-                         free_port, servo_functions, servo_outputs, short_mission)
+from run_helpers import (
+    SPEEDUP,
+    WAIT,
+    RunnerProcess,
+    armed,
+    assert_left_safe,
+    bridge_with_checker,
+    checker,
+    free_port,
+    servo_functions,
+    servo_outputs,
+    short_mission,
+)
 from test_bridge_gcs import Gcs, mavutil
 
 
@@ -79,7 +90,7 @@ def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
             assert_left_safe(gcs)
         finally:
             gcs.close()
-    assert "SERVO1_FUNCTION, SERVO2_FUNCTION" in rerun.output and "already on RCIN passthrough" in rerun.output
+    assert "SERVO1_FUNCTION, SERVO2_FUNCTION" in rerun.output and "taken as abandoned" in rerun.output
 
 
 def test_dry_run_changes_nothing_on_the_vehicle(tmp_path):
@@ -193,7 +204,7 @@ def test_outputs_left_on_passthrough_are_made_neutral_before_anything_else(tmp_p
             assert_left_safe(gcs)
         finally:
             gcs.close()
-    assert "already on RCIN passthrough" in run.output
+    assert "taken as abandoned" in run.output
 
 
 def test_overrides_the_vehicle_ignores_stop_the_run_before_any_output_is_switched(tmp_path):

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from rov_mav.actuation import Actuation
-from rov_mav.approach import approach
-from rov_mav.link import mavlink
-from rov_mav.thrusters import load_t200
-from rov_mav.vehicle_clock import VehicleClock
-from rov_mav.vehicle_state import StateDecoder
+from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.link import mavlink
+from rov_mav.flight.vehicle_clock import VehicleClock
+from rov_mav.flight.vehicle_state import StateDecoder
+from rov_mav.mission.approach import approach
+from rov_mav.model.thrusters import load_t200
 
 
 def test_the_vehicle_clock_learns_the_speedup_and_extrapolates():

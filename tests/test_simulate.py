@@ -8,14 +8,15 @@ import sys
 
 import numpy as np
 import pytest
-
-from rov_mav import dynamics, kernel, law
-from rov_mav.controller import load_settings
-from rov_mav.metrics import trace_metrics
-from rov_mav.mission import load_mission
-from rov_mav.simulation import simulate
-
 from conftest import MISSIONS
+
+from rov_mav.control import law
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.metrics import trace_metrics
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import dynamics
+from rov_mav.offline import loop_kernel
+from rov_mav.offline.simulation import simulate
 
 
 @pytest.fixture(scope="module")
@@ -69,9 +70,9 @@ def test_batch_runs_equal_single_runs(vehicle, line):
     def run(g):
         n = g.shape[0]
         cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
-        kernel.simulate_batch(np.tile(vehicle.packed(), (n, 1)), np.tile(line.environment.packed(), (n, 1)),
+        loop_kernel.simulate_batch(np.tile(vehicle.packed(), (n, 1)), np.tile(line.environment.packed(), (n, 1)),
                               vehicle.packed(), g, *settings.kernel_arguments(), ref, 0.01, 1, x0,
-                              np.zeros(n, dtype=np.int64), *kernel.printed_cost(ref),
+                              np.zeros(n, dtype=np.int64), *loop_kernel.printed_cost(ref),
                               *[e[:n] for e in empty], cost, steps)
         return cost
 
@@ -90,11 +91,11 @@ def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
     ref = line.sampled_reference(0.05)
     cost, steps = np.zeros(1), np.zeros(1, dtype=np.int64)
     empty = np.zeros((1, 0, 6))
-    kernel.simulate_batch(vehicle.packed()[None], line.environment.packed()[None], vehicle.packed(),
+    loop_kernel.simulate_batch(vehicle.packed()[None], line.environment.packed()[None], vehicle.packed(),
                           settings.gains[None], *settings.kernel_arguments(), ref, 0.05, 1,
                           np.concatenate([line.start_pose, np.zeros(6)]), np.zeros(1, dtype=np.int64),
-                          *kernel.printed_cost(ref), *[empty] * 6, cost, steps)
-    assert cost[0] == kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1
+                          *loop_kernel.printed_cost(ref), *[empty] * 6, cost, steps)
+    assert cost[0] == loop_kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1
 
 
 def test_simulate_command_writes_metrics_and_figures(tmp_path):

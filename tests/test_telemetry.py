@@ -12,18 +12,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from rov_mav import dynamics, telemetry
-from rov_mav.commands.common import rerun_recording
-from rov_mav.controller import load_settings
-from rov_mav.metrics import run_metrics
-from rov_mav.mission import load_mission
-from rov_mav.simulation import simulate
-from rov_mav.telemetry import entities as e
-from rov_mav.thrusters import Allocator
-
 from conftest import MISSIONS, ROOT
-from telemetry_helpers import free_port, read_column, temporal_entities, tick_records, wait_listening
+from telemetry_helpers import (
+    free_port,
+    read_column,
+    temporal_entities,
+    tick_records,
+    wait_listening,
+)
+
+from rov_mav import telemetry
+from rov_mav.commands.common import rerun_recording
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.metrics import run_metrics
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import dynamics
+from rov_mav.model.thrusters import Allocator
+from rov_mav.offline.simulation import simulate
+from rov_mav.telemetry import entities as e
 
 SIMULATED = {e.VEHICLE, e.TRAIL, e.REFERENCE_NOW, e.ARROWS, *e.POSE, e.POSITION_ERROR, e.ATTITUDE_ERROR, e.SLIDING,
              e.FORCE, e.MOMENT, e.DISTURBANCE_FORCE, e.DISTURBANCE_MOMENT, e.GAMMA_TRANSLATION, e.GAMMA_ROTATION,

@@ -16,16 +16,15 @@ from pathlib import Path
 import matplotlib.image
 import numpy as np
 import pytest
+from conftest import MISSIONS, ROOT
 from rerun.experimental import ViewerClient
+from telemetry_helpers import free_port, tick_records
 
 from rov_mav import telemetry
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.simulation import simulate
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.missions import load_mission
+from rov_mav.offline.simulation import simulate
 from rov_mav.telemetry import entities as e
-
-from conftest import MISSIONS, ROOT
-from telemetry_helpers import free_port, tick_records
 
 ARTIFACT = ROOT / "out" / "test-artifacts" / "rerun_live.png"
 VULKAN_DRIVERS = glob.glob("/usr/share/vulkan/icd.d/*.json") + glob.glob("/etc/vulkan/icd.d/*.json")

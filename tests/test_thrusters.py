@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rov_mav.thrusters import (
-    Allocator,
+from rov_mav.model.thrusters import (
     T200,
+    Allocator,
     allocate,
     allocation_matrix,
     load_t200,
     pwms_to_thrusts,
     thrusts_to_pwms,
 )
-from rov_mav.vehicle import load_vehicle
+from rov_mav.model.vehicle import load_vehicle
 
 REFERENCE_CSV = Path("/work/shared/reference/t200/t200_performance.csv")
 PACKAGE_CSV = resources.files("rov_mav") / "data" / "t200_performance.csv"

@@ -8,15 +8,17 @@ import json
 import numpy as np
 import pyarrow as pa
 import pytest
+from conftest import MISSIONS
 from rerun.chunk import RrdReader
 
-from rov_mav import cli, config, kernel, pso, tuning
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.scenarios import load_scenarios, nominal
-from rov_mav.simulation import simulate
-
-from conftest import MISSIONS
+from rov_mav import cli, config
+from rov_mav.control import law_kernel
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import kernel
+from rov_mav.offline import loop_kernel, pso, tuning
+from rov_mav.offline.scenarios import load_scenarios, nominal
+from rov_mav.offline.simulation import simulate
 
 SHORT = 8.0   # s of the line per run: enough for the start transient and the adaptation to show
 
@@ -58,7 +60,7 @@ def test_feedforward_is_what_the_compiled_law_commands_on_the_reference(vehicle,
         R = np.array(kernel.rotation(1.0, 0.0, 1.0, 0.0, np.cos(ref[k, 5]), np.sin(ref[k, 5]))).reshape(3, 3)
         nu = np.concatenate([R.T @ ref[k, 6:9], ref[k, 9:12]])        # roll = pitch = 0 on the line
         tau, s, grad = np.zeros(6), np.zeros(6), np.zeros(6)
-        kernel.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, ref[k, :6].copy(), nu, ref[k], np.zeros(6),
+        law_kernel.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, ref[k, :6].copy(), nu, ref[k], np.zeros(6),
                            tau, s, grad)
         np.testing.assert_allclose(s, 0.0, atol=1e-12)
         np.testing.assert_allclose(tau, tau_ff[k], rtol=1e-9, atol=1e-9)
@@ -102,14 +104,14 @@ def test_a_saturating_or_diverging_particle_gets_a_large_finite_cost(vehicle, li
     problem = tuning.build_problem(line, fuzzy, vehicle, [nominal(line.environment)], duration=SHORT)
     gains = np.stack([fuzzy.gains, np.full(12, 60.0), np.full(12, 0.5)])   # fine, saturates at start, fine
     costs, steps = problem.run(gains, np.zeros(3, dtype=np.int64))
-    assert costs[1] == kernel.DIVERGED_COST and steps[1] == 0          # the first tick's wrench is out of reach
+    assert costs[1] == loop_kernel.DIVERGED_COST and steps[1] == 0          # the first tick's wrench is out of reach
     assert np.all(np.isfinite(costs)) and costs[0] < 1e6 and costs[2] < 1e6
     assert steps[0] == steps[2] == problem.ref.shape[0] - 1
     coarse = line.sampled_reference(0.05, SHORT)      # 400 gains at 20 Hz: the discrete loop blows up
     unlimited = dataclasses.replace(problem, tau_max=np.full(6, np.inf), dt=0.05, ref=coarse,
                                     tau_ff=np.zeros((len(coarse), 6)))
     cost, steps = unlimited.run(np.full((1, 12), 400.0), np.zeros(1, dtype=np.int64))
-    assert cost[0] == kernel.DIVERGED_COST and 0 < steps[0] < SHORT / 0.05
+    assert cost[0] == loop_kernel.DIVERGED_COST and 0 < steps[0] < SHORT / 0.05
 
 
 def test_scenario_costs_equal_separate_single_scenario_problems(vehicle, line, fuzzy):
@@ -169,7 +171,7 @@ def test_tuned_gains_beat_a_poor_starting_set(vehicle, line, fuzzy):
 
 
 def test_dask_local_cluster_gives_the_in_process_result(vehicle, line, fuzzy):
-    from rov_mav.cluster import DaskBackend
+    from rov_mav.offline.cluster import DaskBackend
 
     scenarios = load_scenarios(MISSIONS / "scenarios" / "robust.yaml", line.environment)[:3]
     problem = tuning.build_problem(line, fuzzy, vehicle, scenarios, duration=2.0)

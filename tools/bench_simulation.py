@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav import kernel
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.vehicle import load_vehicle
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.offline import loop_kernel
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,8 +35,8 @@ def batch_runner(n: int, duration: float = 60.0, dt: float = 0.01):
     cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
 
     def run():
-        kernel.simulate_batch(plant, env, vehicle.packed(), gains, *args, ref, dt, 1, x0,
-                              np.zeros(n, dtype=np.int64), *kernel.printed_cost(ref),
+        loop_kernel.simulate_batch(plant, env, vehicle.packed(), gains, *args, ref, dt, 1, x0,
+                              np.zeros(n, dtype=np.int64), *loop_kernel.printed_cost(ref),
                               empty, empty, empty, empty, empty, empty, cost, steps)
         return cost
 

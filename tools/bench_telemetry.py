@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from rov_mav import telemetry
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.simulation import simulate
+from rov_mav.control.controller import load_settings
+from rov_mav.flight.tick import TickRecord
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.thrusters import Allocator, thrusts_to_pwms
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.offline.simulation import simulate
 from rov_mav.telemetry.entities import TickColumns, log_static, send_ticks
-from rov_mav.thrusters import Allocator, thrusts_to_pwms
-from rov_mav.tick import TickRecord
-from rov_mav.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 PERIOD = 0.02   # s: 50 Hz

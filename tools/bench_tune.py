@@ -3,11 +3,11 @@
 Paper scale: 100 particles x 100 iterations, each particle a 60 s closed-loop run on the line (Eq. 3.1) at the
 100 Hz control rate with the fuzzy adaptation in the loop. Measured in one run:
   1. compile / cache load of the kernel, separately;
-  2. our tuner (`rov_mav.tuning`, the swarm as batches on 2 threads), the whole tune;
+  2. our tuner (`rov_mav.offline.tuning`, the swarm as batches on 2 threads), the whole tune;
   3. pyswarms' GlobalBestPSO (same w, c1, c2, bounds, velocity clamp) whose objective loops over the particles,
      one call of the same compiled simulation per particle: measured for --baseline-iterations, extrapolated;
   4. the same, but the per-particle simulation written with NumPy from the readable model and law
-     (rov_mav.dynamics, rov_mav.law, the exact fuzzy rates): how a script port of the Simulink model runs;
+     (rov_mav.model.dynamics, rov_mav.control.law, the exact fuzzy rates): how a script port of the Simulink model runs;
      measured on a few short runs and extrapolated per particle-tick;
   5. a floor for one particle-tick: the compiled RK4 plant step alone (4 model evaluations, no law, no
      adaptation, no cost), the part of a tick no implementation can skip.
@@ -24,12 +24,14 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from rov_mav import dynamics, kernel, law, pso, tuning
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.scenarios import nominal
-from rov_mav.simulation import simulate
-from rov_mav.vehicle import load_vehicle
+from rov_mav.control import law
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import dynamics, kernel
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.offline import pso, tuning
+from rov_mav.offline.scenarios import nominal
+from rov_mav.offline.simulation import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = (np.full(12, 0.1), np.full(12, 10.0))

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.controller import load_settings
-from rov_mav.metrics import trace_metrics
-from rov_mav.mission import load_mission
-from rov_mav.plots import plot_dofs, plot_estimates, plot_path
-from rov_mav.simulation import simulate
-from rov_mav.vehicle import load_vehicle
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.metrics import trace_metrics
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.offline.plots import plot_dofs, plot_estimates, plot_path
+from rov_mav.offline.simulation import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CONTROLLERS = ("baseline", "constant", "fuzzy")

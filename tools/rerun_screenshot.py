@@ -15,10 +15,10 @@ from pathlib import Path
 from rerun.experimental import ViewerClient
 
 from rov_mav import telemetry
-from rov_mav.controller import load_settings
-from rov_mav.mission import load_mission
-from rov_mav.simulation import simulate
-from rov_mav.vehicle import load_vehicle
+from rov_mav.control.controller import load_settings
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.offline.simulation import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

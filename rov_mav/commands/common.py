@@ -7,15 +7,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rov_mav.controller import SCHEDULES, ControllerSettings, load_settings
+from rov_mav.control.controller import SCHEDULES, ControllerSettings, load_settings
 
 if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
     import numpy as np
     import rerun as rr
 
     from rov_mav import telemetry
-    from rov_mav.mission import Mission
-    from rov_mav.vehicle import Vehicle
+    from rov_mav.mission.missions import Mission
+    from rov_mav.model.vehicle import Vehicle
 
 
 def positive_float(text: str) -> float:

@@ -8,8 +8,13 @@ import socket
 import sys
 from pathlib import Path
 
-from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
-                                     rerun_sink)
+from rov_mav.commands.common import (
+    add_controller_options,
+    add_rerun_option,
+    controller_settings,
+    positive_float,
+    rerun_sink,
+)
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -23,8 +28,15 @@ last. Passthrough outputs are NOT gated by arming and KEEP their last PWM when t
 all 8 channels, releases the overrides, disarms and restores SERVO1..8_FUNCTION, and prints what it did. If the link
 is gone it says so: the thrusters then hold their last command on the vehicle.
 
-Before arming it checks that the vehicle is ArduSub on a submarine, not armed by someone else, that nobody else is
-overriding its RC input (both unless --force), and that ATTITUDE and LOCAL_POSITION_NED arrive at the control rate.
+Before sending anything it watches the link for 3 s of vehicle time and refuses (unless --force) a vehicle that is
+not ArduSub on a submarine, is armed, is driven by another station (RC overrides, a joystick off centre) or whose
+RC input is changing; outputs found on passthrough are taken as abandoned only when none of that holds. A pilot
+station whose joystick rests on the GCS sysid (QGroundControl, Cockpit) is made to coexist: the run takes the GCS
+role with a sysid of its own (MAV_GCS_SYSID / SYSID_MYGCS set for the run, restored on exit). While flying, a
+joystick moved off centre, another station's RC overrides, RC input the run did not send or a mode changed by
+someone else hand the vehicle over: neutral, overrides released, SERVO1..8_FUNCTION back to the motors, the GCS
+sysid restored, left armed for the pilot (exit status 3). Then ATTITUDE and LOCAL_POSITION_NED must arrive at the
+control rate.
 Safety while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout
 -> abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster.
 """
@@ -37,8 +49,8 @@ examples:
   rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
   rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
 
-exit status: 0 mission complete; 1 aborted (the reason is printed); 2 bad arguments or files;
-128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
+exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2 bad arguments or files;
+3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
 """
 
 
@@ -59,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="connect and compute everything (logged), but change no parameter, arm nothing and send no "
                         "override; limit crossings are reported, not acted on")
     p.add_argument("--force", action="store_true",
-                   help="take over a vehicle that is already armed or whose RC input someone else is driving")
+                   help="take over a vehicle that is already armed or that another station is driving")
     p.add_argument("--metrics", metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
     p.add_argument("--log", metavar="DIR",
                    help="write ticks.csv (state, reference, commands, controller internals), events.csv and the "
@@ -72,7 +84,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
     link = p.add_argument_group("link")
     link.add_argument("--sysid", type=int, metavar="ID",
-                      help="our MAVLink system id (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255)")
+                      help="our MAVLink system id (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255; "
+                           "another one, or a pilot's joystick on that sysid, makes the run take the GCS role with "
+                           "its own sysid for the run)")
     link.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
     link.add_argument("--heartbeat-timeout", type=positive_float, default=15.0, metavar="S",
                       help="wall seconds to wait for the vehicle's heartbeat (default 15)")
@@ -96,7 +110,7 @@ def _free_udp_port() -> int:
 
 def _start_bridge(mission, speedup: float):
     """The built-in vehicle in a background thread; returns (bridge, connection string for it)."""
-    from rov_mav.link import LinkError
+    from rov_mav.flight.link import LinkError
     from sim_bridge.config import BridgeConfig
     from sim_bridge.link import LinkError as BridgeLinkError
     from sim_bridge.server import Bridge
@@ -115,15 +129,15 @@ def _start_bridge(mission, speedup: float):
 
 def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
-    from rov_mav.actuation import Actuation
-    from rov_mav.controller import Controller
-    from rov_mav.link import LinkError, Session
-    from rov_mav.metrics import run_metrics
-    from rov_mav.mission import load_mission
-    from rov_mav.runlog import RunLog
-    from rov_mav.runner import Limits, RunOptions, Runner
-    from rov_mav.status import StatusLine
-    from rov_mav.vehicle import load_vehicle
+    from rov_mav.control.controller import Controller
+    from rov_mav.flight.actuation import Actuation
+    from rov_mav.flight.link import LinkError, Session
+    from rov_mav.flight.runlog import RunLog
+    from rov_mav.flight.runner import Limits, Runner, RunOptions
+    from rov_mav.flight.status import StatusLine
+    from rov_mav.mission.metrics import run_metrics
+    from rov_mav.mission.missions import load_mission
+    from rov_mav.model.vehicle import load_vehicle
 
     mission = load_mission(args.mission)
     settings = controller_settings(args)

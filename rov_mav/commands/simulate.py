@@ -6,10 +6,14 @@ import argparse
 import json
 from pathlib import Path
 
+from rov_mav.commands.common import (
+    add_controller_options,
+    add_rerun_option,
+    controller_settings,
+    positive_float,
+    rerun_recording,
+)
 from rov_mav.config import ConfigError
-
-from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
-                                     rerun_recording)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,11 +38,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav import telemetry
-    from rov_mav.metrics import trace_metrics
-    from rov_mav.mission import load_mission
-    from rov_mav.plots import plot_run
-    from rov_mav.simulation import simulate
-    from rov_mav.vehicle import load_vehicle
+    from rov_mav.mission.metrics import trace_metrics
+    from rov_mav.mission.missions import load_mission
+    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.offline.plots import plot_run
+    from rov_mav.offline.simulation import simulate
 
     mission = load_mission(args.mission)
     settings = controller_settings(args)

@@ -13,15 +13,20 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
-from rov_mav import kernel, pso, tuning
-from rov_mav.commands.common import (add_controller_options, add_rerun_option, controller_settings, positive_float,
-                                     rerun_recording)
-from rov_mav.controller import ControllerSettings
-from rov_mav.metrics import trace_metrics
-from rov_mav.mission import Mission, load_mission
-from rov_mav.scenarios import load_scenarios, nominal
-from rov_mav.simulation import Trace, simulate
-from rov_mav.vehicle import Vehicle, load_vehicle
+from rov_mav.commands.common import (
+    add_controller_options,
+    add_rerun_option,
+    controller_settings,
+    positive_float,
+    rerun_recording,
+)
+from rov_mav.control.controller import ControllerSettings
+from rov_mav.mission.metrics import trace_metrics
+from rov_mav.mission.missions import Mission, load_mission
+from rov_mav.model.vehicle import Vehicle, load_vehicle
+from rov_mav.offline import loop_kernel, pso, tuning
+from rov_mav.offline.scenarios import load_scenarios, nominal
+from rov_mav.offline.simulation import Trace, simulate
 
 DEFAULT_BOUNDS = (0.1, 10.0)   # ERRATA: the report's optimum spans 0.8-10
 
@@ -134,7 +139,9 @@ def main(args: argparse.Namespace) -> int:
     plot_dir = Path(args.plot) if args.plot else out.parent
 
     if args.cluster:
-        from rov_mav.cluster import DaskBackend   # dask is optional: imported only when asked for
+        from rov_mav.offline.cluster import (
+            DaskBackend,  # dask is optional: imported only when asked for
+        )
         backend = DaskBackend(args.cluster)
     else:
         backend = tuning.ThreadBackend(args.threads)
@@ -150,8 +157,8 @@ def main(args: argparse.Namespace) -> int:
         result = tuning.tune(problem, lower, upper, options, args.seed, backend, progress)
         objective = problem.costs(np.stack([start.gains, result.best_position]), backend)
     elapsed = time.perf_counter() - t0
-    if result.best_cost >= kernel.DIVERGED_COST:
-        print(f"rov-mav tune: every particle diverged or saturated the thrusters (cost {kernel.DIVERGED_COST:g}); "
+    if result.best_cost >= loop_kernel.DIVERGED_COST:
+        print(f"rov-mav tune: every particle diverged or saturated the thrusters (cost {loop_kernel.DIVERGED_COST:g}); "
               "no gains written: widen --bounds or check the mission's limits and the vehicle file", file=sys.stderr)
         return 1
 
@@ -161,7 +168,9 @@ def main(args: argparse.Namespace) -> int:
                             f"{options.particles} particles x {options.iterations} iterations, seed {args.seed}, "
                             f"w {options.w}, c1 {options.c1}, c2 {options.c2}")
     plot_dir.mkdir(parents=True, exist_ok=True)
-    from rov_mav.plots import plot_convergence   # matplotlib loads only when a figure is drawn
+    from rov_mav.offline.plots import (
+        plot_convergence,  # matplotlib loads only when a figure is drawn
+    )
 
     figure = plot_convergence(result.cost_history, result.position_history,
                               f"PSO on {mission.name} ({args.cost} cost)", plot_dir / "convergence.png")

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 import rerun as rr
 
-from rov_mav import dynamics
-from rov_mav.tick import TickRecord
+from rov_mav.flight.tick import TickRecord
+from rov_mav.model import dynamics
+from rov_mav.model.vehicle import Vehicle
 from rov_mav.units import wrap_angle
-from rov_mav.vehicle import Vehicle
 
 TIMELINE = "vehicle_time"
 ARROW_SCALE = 0.05    # m of arrow per N of thrust

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import rerun as rr
 
-from rov_mav.mission import Mission
-from rov_mav.simulation import Trace
+from rov_mav.mission.missions import Mission
+from rov_mav.model.thrusters import Allocator, thrusts_to_pwms
+from rov_mav.model.vehicle import Vehicle
+from rov_mav.offline.simulation import Trace
 from rov_mav.telemetry.entities import TickColumns, log_static, send_events, send_ticks
-from rov_mav.thrusters import Allocator, thrusts_to_pwms
-from rov_mav.vehicle import Vehicle
 
 NOMINAL_VOLTAGE = 16.0   # V: a charged 4S pack, for the thrusts and PWMs shown (simulate's plant takes tau directly)
 

@@ -9,7 +9,8 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, model_validator
 
-from rov_mav import config, kernel
+from rov_mav import config
+from rov_mav.model import kernel
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
@@ -69,7 +70,7 @@ class Environment:
         return self.disturbance
 
     def packed(self) -> np.ndarray:
-        """The flat vector the compiled kernel reads (layout in `rov_mav.kernel`)."""
+        """The flat vector the compiled kernel reads (layout in `rov_mav.model.kernel`)."""
         out = np.zeros(kernel.E_SIZE)
         out[kernel.E_DIST:kernel.E_DIST + 6] = self.disturbance
         out[kernel.E_AMP:kernel.E_AMP + 6] = self.disturbance_amplitude

@@ -1,15 +1,20 @@
 """The real-time loop against a vehicle: safe start, control ticks on the vehicle's telemetry, watchdog, limits, and
 a safe stop on every exit path.
 
-Start: identify the vehicle (ArduSub on a sub, not armed by someone else, nobody else overriding), ask for the
-telemetry the law needs and check its rate, save SERVO1..8_FUNCTION, hold neutral overrides, switch the eight
-outputs to RCIN passthrough (each confirmed), MANUAL, arm.
+Start: identify the vehicle (ArduSub on a sub), then watch the link for a few seconds with nothing sent but reads:
+refuse a vehicle that is someone else's (armed, driven by another station, RC input changing) before anything goes
+out (`stations.judge`). Only then: take the GCS role if a pilot's joystick shares the GCS sysid, make abandoned
+passthrough outputs neutral, ask for the telemetry the law needs and check its rate, hold neutral overrides, switch
+the eight outputs to RCIN passthrough (each confirmed), MANUAL, arm.
+Flying: a pilot's joystick beyond the dead band, another station's RC override, a joystick appearing on our GCS
+sysid, RC input that is not ours, or a mode changed by someone else hands the vehicle to the pilot (`PilotTakeover`).
 Tick (each new ATTITUDE + LOCAL_POSITION_NED pair): reference -> law + adaptation -> allocation -> T200 map ->
 RC_CHANNELS_OVERRIDE, a TickRecord to every sink.
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
-channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm, restore SERVO1..8_FUNCTION, restore the
-message rates, and say what was done; if the vehicle no longer answers, say that its thrusters hold their last
-command.
+channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
+SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
+answers, say that its thrusters hold their last command. A pilot takeover does the same but leaves the vehicle
+armed, on its motors, for the pilot.
 """
 
 from __future__ import annotations
@@ -23,25 +28,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rov_mav.actuation import Actuation
-from rov_mav.approach import approach
-from rov_mav.controller import Controller
-from rov_mav.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink
-from rov_mav.metrics import tracking_errors
-from rov_mav.mission import Mission
-from rov_mav.tick import TickRecord
-from rov_mav.vehicle_state import State, StateDecoder
+from rov_mav.control.controller import Controller
+from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
+from rov_mav.flight.stations import Sighting, Station, Verdict, judge
+from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.vehicle_state import State, StateDecoder
+from rov_mav.mission.approach import approach
+from rov_mav.mission.metrics import tracking_errors
+from rov_mav.mission.missions import Mission
 
 PASSTHROUGH_BASE = 50            # SERVOn_FUNCTION 50 + n = RCINn
 MOTOR_BASE = 32                  # SERVOn_FUNCTION 32 + n = motor n
 SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0}   # vehicle Hz
 RATE_WINDOW = 1.0                # vehicle s of telemetry measured before arming
 RATE_TOLERANCE = 0.8             # fraction of the asked rate that must arrive
-RC_NEUTRAL_TOLERANCE = 25        # us: RC input further than this from 1500 means someone is driving
+OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
+OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
+ROLE_SYSIDS = range(254, 200, -1)   # sysids to take the GCS role with, when a pilot's joystick holds the GCS sysid
+HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
 OVERRIDE_PROBE = 1510            # us: inside the T200 dead band at every voltage (1476-1528 us at 20 V)
 PROBE_WAIT = 2.0                 # vehicle s for RC_CHANNELS (asked at 2 Hz) to echo the probe
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
+HANDOVER_CONFIRM = 0.2           # ... when handing over: a pilot's joystick on the GCS sysid may be writing over it
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
 DRY_RUN_SYSID = 254               # a dry run's own sysid: anything but the vehicle's GCS sysid
@@ -61,6 +71,15 @@ class Abort(Exception):
 
 class LinkLost(Abort):
     pass
+
+
+class PilotTakeover(Abort):
+    """Someone else is driving: hand the vehicle over (neutral, release, motors back), left armed for them."""
+
+    def __init__(self, reason: str, t_detected: float, station: Station | None = None):
+        super().__init__(reason, HANDED_OVER)
+        self.t_detected = t_detected
+        self.station = station
 
 
 @dataclass(frozen=True)
@@ -128,6 +147,10 @@ class Runner:
         self.streams_set: list[int] = []
         self.touched = False          # an override went out
         self.armed_by_us = False
+        self.saved_gcs: tuple[str, int, int] | None = None   # GCS sysid parameter changed for the run: (name, was, type)
+        self.flying_since: float | None = None     # vehicle s the vehicle became ours to fly (armed by us)
+        self.takeover: PilotTakeover | None = None
+        self._rc_seen: list[list[int]] | None = None   # RC_CHANNELS rows, while observing
         self.signal_name: str | None = None
         self.stopping = False
         self.last_state: State | None = None
@@ -157,6 +180,7 @@ class Runner:
             completed = True
         except Abort as exc:
             code, reason = exc.code, exc.reason
+            self.takeover = exc if isinstance(exc, PilotTakeover) else None
         except LinkError as exc:
             code, reason = 1, str(exc)
         except Exception as exc:     # noqa: BLE001 -- any bug must still end in a safe stop
@@ -202,17 +226,20 @@ class Runner:
         self._warm_up()
         vehicle = s.connect(o.heartbeat_timeout)
         self.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
-        stale = [] if o.dry_run else self._read_outputs()
-        if stale:   # live passthrough outputs left by an earlier run: neutral first, before any refusal
-            self._use_gcs_sysid()
-            s.start_heartbeats()
-            self._neutralise(stale)
-        if s.armed and not o.force:
-            raise Abort("the vehicle is already armed by someone else: refusing to take it over (--force to "
-                        "override)")
-        if not stale:
-            self._use_gcs_sysid()
-            s.start_heartbeats()
+        since = s.clock.now()
+        passthrough = [] if o.dry_run else self._read_outputs()
+        gcs = s.gcs_sysid()
+        verdict = judge(self._observe(since, passthrough), s.stations, o.force)
+        for station in s.stations.stations.values():
+            self.say(f"also on the link: {station.describe()}")
+        if verdict.refusal is not None:
+            raise Abort(f"refusing to take the vehicle: {verdict.refusal}. Nothing was sent to it (--force to take "
+                        "it over anyway)")
+        # From here on the vehicle is ours: free, or left by a run that died.
+        self._use_gcs_sysid(gcs, verdict)
+        s.start_heartbeats()
+        if verdict.abandoned:
+            self._neutralise(verdict.abandoned)
         for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
             msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
             hz = SIDE_RATES.get(name, o.rate)
@@ -221,7 +248,28 @@ class Runner:
             elif name in ("ATTITUDE", "LOCAL_POSITION_NED"):
                 raise Abort(f"the vehicle refused SET_MESSAGE_INTERVAL for {name} at {hz:g} Hz")
         self._wait_for_state()
-        self._check_rates_and_rc()
+        self._check_rates()
+
+    def _observe(self, since: float, passthrough: list[str]) -> Sighting:
+        """Watch the link for OBSERVE vehicle s, sending nothing but one-shot requests for RC_CHANNELS and
+        SERVO_OUTPUT_RAW (no stream rate is changed): who else is there, and is the RC input steady?"""
+        s = self.session
+        self._rc_seen = []
+        wall_end = time.monotonic() + s.clock.wall_seconds(OBSERVE) + 1.0
+        start, next_poll = None, 0.0
+        while time.monotonic() < wall_end:
+            self._interrupt()
+            now = s.clock.now()
+            start = now if start is None and s.clock.started else start
+            if start is not None and now - start >= OBSERVE:
+                break
+            if time.monotonic() >= next_poll:
+                next_poll = time.monotonic() + s.clock.wall_seconds(OBSERVE_POLL)
+                s.request_message(mavlink.MAVLINK_MSG_ID_RC_CHANNELS)
+                s.request_message(mavlink.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW)
+            self._pump(0.02)
+        rc, self._rc_seen = self._rc_seen, None
+        return Sighting(since=since, armed=s.armed, passthrough=passthrough, rc=rc)
 
     def _read_outputs(self) -> list[str]:
         """Save SERVO1..8_FUNCTION, learn MOT_1..8_DIRECTION; returns the outputs already on RCIN passthrough."""
@@ -250,8 +298,9 @@ class Runner:
     def _neutralise(self, stale: list[str]) -> None:
         """Outputs already on RCIN passthrough (a run that lost its link?) still drive their thrusters with the
         last PWM: send neutral, and restore them to their motors when this run ends, whatever happens."""
-        self.say(f"{', '.join(stale)} already on RCIN passthrough (left by an interrupted run?): sending neutral; "
-                 "they will be restored to their motors when this run ends", "warning")
+        self.say(f"{', '.join(stale)} on RCIN passthrough with the vehicle disarmed and no station driving them for "
+                 f"{OBSERVE:g} s: taken as abandoned (a run that lost its link?); sending neutral; they will be "
+                 "restored to their motors when this run ends", "warning")
         self.session.override_rate = self.options.rate
         self.changed_functions += stale
         if not self._neutral():
@@ -268,26 +317,45 @@ class Runner:
         approach(eta, self.mission.start_pose, self.options.approach_speed)
         tracking_errors(eta[None], reference[None, :6])
 
-    def _use_gcs_sysid(self) -> None:
+    def _use_gcs_sysid(self, found: tuple[str, int, int] | None, verdict: Verdict) -> None:
+        """Speak as the vehicle's GCS sysid (ArduSub takes RC overrides only from it). When a pilot station's
+        joystick shares that sysid, ArduSub would write it over our thrusters: take the GCS role for the run with a
+        sysid of our own (the parameter is restored on every exit), so ArduSub ignores the resting joystick while we
+        watch it."""
         s, o = self.session, self.options
-        found = s.gcs_sysid()
         if found is None:
             s.use_sysid(o.sysid or s.sysid)
             self.say(f"the vehicle did not report MAV_GCS_SYSID or SYSID_MYGCS: speaking as sysid {s.sysid}",
                      "warning")
             return
-        name, value = found
+        name, value, ptype = found
         if o.dry_run:
             # Heartbeats from the GCS sysid would hide a lost link from the pilot's own ground station (and ArduSub
             # would count them for its GCS failsafe): a dry run, which sends no override, speaks as another sysid.
             s.use_sysid(DRY_RUN_SYSID if value != DRY_RUN_SYSID else DRY_RUN_SYSID - 1)
             self.say(f"dry run: speaking as sysid {s.sysid}, not the vehicle's GCS sysid ({name} = {value})")
             return
-        if o.sysid is not None and o.sysid != value:
-            raise Abort(f"--sysid {o.sysid} differs from the vehicle's {name} = {value}: ArduSub ignores overrides "
-                        f"from any other sysid")
-        s.use_sysid(o.sysid if o.sysid is not None else value)
-        self.say(f"speaking as GCS sysid {s.sysid} ({name} = {value})")
+        pilots = [p for p in verdict.resting_pilots if p.sysid == value]
+        own = o.sysid
+        if own is None and pilots:
+            taken = s.stations.sysids() | {s.vehicle.sysid}
+            own = next(n for n in ROLE_SYSIDS if n not in taken)
+        if own is None or own == value:
+            if pilots:
+                raise Abort(f"{pilots[0].describe()} shares the GCS sysid {value} that --sysid asks for: ArduSub "
+                            "would write its joystick over our thrusters (leave --sysid out, and the run takes the GCS "
+                            "role with a sysid of its own)")
+            s.use_sysid(value)
+            self.say(f"speaking as GCS sysid {s.sysid} ({name} = {value})")
+            return
+        if not s.set_param(name, own, ptype):
+            raise Abort(f"the vehicle did not confirm {name} = {own}")
+        self.saved_gcs = (name, value, ptype)
+        s.use_sysid(own)
+        why = (f": {', '.join(p.describe() for p in pilots)} is ignored by ArduSub until the run ends or hands the "
+               "vehicle to it" if pilots else "")
+        self.say(f"took the GCS role for this run: speaking as sysid {own}, {name} = {own} (was {value}; restored "
+                 f"when the run ends){why}")
 
     def _wait_for_state(self) -> None:
         """Until ATTITUDE and LOCAL_POSITION_NED have both arrived, with progress messages and a timeout."""
@@ -310,10 +378,9 @@ class Runner:
                  if m is None]
         return " and ".join(names)
 
-    def _check_rates_and_rc(self) -> None:
-        """Measure the state messages' rates over RATE_WINDOW vehicle s; look for anyone else driving."""
+    def _check_rates(self) -> None:
+        """Measure the state messages' rates over RATE_WINDOW vehicle s."""
         stamps: dict[str, list[float]] = {"ATTITUDE": [], "LOCAL_POSITION_NED": []}
-        rc = []
         t_first = None
         deadline = time.monotonic() + self.session.clock.wall_seconds(RATE_WINDOW) * 3 + 2.0
         while time.monotonic() < deadline:
@@ -324,8 +391,6 @@ class Runner:
                 if kind in stamps:
                     stamps[kind].append(msg.time_boot_ms / 1000.0)
                     t_first = stamps[kind][0] if t_first is None else t_first
-                elif kind == "RC_CHANNELS":
-                    rc.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
             if t_first is not None and self.session.clock.now() - t_first >= RATE_WINDOW:
                 break
         rates = {k: (len(v) - 1) / (v[-1] - v[0]) if len(v) > 1 and v[-1] > v[0] else 0.0
@@ -337,12 +402,6 @@ class Runner:
             raise Abort("telemetry too slow for the control rate: " + ", ".join(f"{k} {r:.1f} Hz" for k, r in
                         slow.items()) + f" < {RATE_TOLERANCE:.0%} of {self.options.rate:g} Hz (lower --rate, or "
                         "check the link's bandwidth)")
-        driving = [f"RC{i + 1}={v}" for row in rc[-1:] for i, v in enumerate(row)
-                   if v != 0 and abs(v - NEUTRAL) > RC_NEUTRAL_TOLERANCE]
-        others = [f"{n} x {k}" for k, n in self.session.strangers.items()]
-        if (driving or others) and not self.options.force:
-            raise Abort("another station seems to be driving the vehicle (" + ", ".join(driving + others)
-                        + "): refusing to start (--force to take over)")
 
     def _take_over(self) -> None:
         s = self.session
@@ -365,6 +424,7 @@ class Runner:
         self.armed_by_us = True
         if not s.arm(True):
             raise Abort("arming failed: the vehicle refused or did not confirm it")
+        self.flying_since = s.clock.now()
         self.say("armed in MANUAL")
 
     def _prove_overrides(self) -> None:
@@ -440,10 +500,37 @@ class Runner:
         kind = msg.get_type()
         if kind == "STATUSTEXT":
             self.say(f"vehicle: {msg.text}", "warning" if msg.severity <= mavlink.MAV_SEVERITY_WARNING else "info")
-        elif kind == "HEARTBEAT" and self.armed_by_us and not self.stopping and not self.options.dry_run \
-                and not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED and self.t_start is not None:
-            raise Abort("the vehicle disarmed itself during the run (a failsafe?)")
+        elif kind == "RC_CHANNELS" and self._rc_seen is not None:
+            self._rc_seen.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
+        if self.flying_since is not None and not self.stopping:
+            self._watch(msg, kind)
         return self.decoder.update(msg)
+
+    def _watch(self, msg, kind: str) -> None:
+        """While the vehicle is ours: is anyone else driving it? (PilotTakeover; Abort if it was disarmed.)"""
+        s = self.session
+        now = s.clock.now()
+        if kind == "HEARTBEAT":
+            if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
+                raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)")
+            if msg.custom_mode != MANUAL:
+                mode = mode_name(msg.custom_mode)
+                raise PilotTakeover(f"the vehicle's mode was changed to {mode} by someone else", now)
+        elif kind == "RC_CHANNELS" and s.echo.report(msg.time_boot_ms / 1000.0,
+                                                     [getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
+            raise PilotTakeover("the vehicle's RC input is not what this run sends (RC_CHANNELS "
+                                f"{[getattr(msg, f'chan{i}_raw') for i in range(1, CHANNELS + 1)]}): another station is "
+                                "writing it", now)
+        stations = s.stations
+        if moving := stations.pilots_moving(self.flying_since):
+            raise PilotTakeover(f"pilot takeover: {moving[0].describe()}", moving[0].deflected_at, moving[0])
+        if overriding := stations.overriding(self.flying_since):
+            raise PilotTakeover(f"another station took over the RC input: {overriding[0].describe()}",
+                                overriding[0].last_drive, overriding[0])
+        if self.saved_gcs is None and (joysticks := stations.joysticks(self.flying_since, s.sysid)):
+            raise PilotTakeover(f"a pilot station on our GCS sysid started sending MANUAL_CONTROL, which ArduSub "
+                                f"writes over our thrusters: {joysticks[0].describe()}", joysticks[0].last_drive,
+                                joysticks[0])
 
     def _mission_time(self, t: float) -> float:
         """Vehicle s since the mission proper started (negative during the lead-in)."""
@@ -538,7 +625,7 @@ class Runner:
                           f"{self.options.stale_periods:g} control periods); neutral was sent each time")
         if s.vehicle is None:
             return self._finish(report + ["no ArduSub vehicle was taken over: nothing was sent that changes one"])
-        if not self.touched and not self.changed_functions and not self.armed_by_us:
+        if not self.touched and not self.changed_functions and not self.armed_by_us and self.saved_gcs is None:
             if not self.options.dry_run:
                 report.append("nothing had been changed on the vehicle")
             else:
@@ -552,11 +639,12 @@ class Runner:
                 report.append(f"{label} FAILED: {exc!r}")
                 return None
 
-        neutral_confirmed = bool(attempt("neutral", self._neutral))
+        confirm = HANDOVER_CONFIRM if self.takeover is not None else SAFE_STOP_CONFIRM
+        neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
         alive = neutral_confirmed or self._answering()
         retry_until = time.monotonic() + LOST_LINK_RETRY
         while not alive and time.monotonic() < retry_until:    # a glitch, or the vehicle is busy: keep trying
-            neutral_confirmed = bool(attempt("neutral", self._neutral))
+            neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
             alive = neutral_confirmed or self._answering()
         report.append("neutral 1500 us on channels 1-8: sent, "
                       + ("confirmed by SERVO_OUTPUT_RAW" if neutral_confirmed else "NOT confirmed"))
@@ -576,30 +664,56 @@ class Runner:
                    + " as soon as the link is back (the next `rov-mav run` does it when it ends)."
                    if self.changed_functions else ""))
             return self._finish(report)
-        if not neutral_confirmed:
+        if not neutral_confirmed and self.takeover is None:
             self._pump_for(NEUTRAL_HOLD)           # give the vehicle time to apply it before letting go
         if attempt("release", lambda: s.release_overrides() or True):
             report.append("RC overrides on channels 1-8 released")
-        if self.armed_by_us or s.armed:
+        if self.armed_by_us and self.takeover is None:
             report.append("disarmed (confirmed by HEARTBEAT)" if attempt("disarm", lambda: s.arm(False))
                           else "disarm NOT confirmed")
-        restored, failed = [], []
-        for name in self.changed_functions:
-            value, ptype = self.saved_functions[name]
-            ok = attempt(f"restore {name}", lambda: s.set_param(name, value, ptype))  # noqa: B023 -- called now
-            (restored if ok else failed).append(f"{name}={int(value)}")
-        if restored:
-            report.append("restored " + ", ".join(restored) + " (confirmed by PARAM_VALUE)")
-        if failed:
-            report.append("NOT restored (no confirmation): " + ", ".join(failed))
+        # The motors first, then the GCS sysid: a pilot's joystick must never reach an output on passthrough.
+        restore = {name: self.saved_functions[name] for name in self.changed_functions}
+        if self.saved_gcs is not None:
+            name, value, ptype = self.saved_gcs
+            report += self._restore(attempt, restore) + self._restore(attempt, {name: (float(value), ptype)})
+        else:
+            report += self._restore(attempt, restore)
+        if self.takeover is not None:
+            report.append(self._handover_note())
         report += attempt("message rates", lambda: self._restore_streams(alive=True)) or []
         return self._finish(report)
 
-    def _neutral(self) -> bool:
-        """Send neutral and wait for SERVO_OUTPUT_RAW showing 1500 on SERVO1..8."""
+    def _restore(self, attempt, values: dict[str, tuple[float, int]]) -> list[str]:
+        """Set the saved parameters back, all at once; one line for the confirmed, one for the rest."""
+        if not values:
+            return []
+        failed = attempt("restore " + ", ".join(values), lambda: self.session.set_params(values))
+        failed = list(values) if failed is None else failed
+        lines = []
+        if restored := [f"{n}={int(v)}" for n, (v, _) in values.items() if n not in failed]:
+            lines.append("restored " + ", ".join(restored) + " (confirmed by PARAM_VALUE)")
+        if failed:
+            lines.append("NOT restored (no confirmation): " + ", ".join(f"{n}={int(values[n][0])}" for n in failed))
+        return lines
+
+    def _handover_note(self) -> str:
+        s = self.session
+        mode = mode_name(s.heartbeat.custom_mode)
+        state = "armed" if s.armed else "NOT armed"
+        took = s.clock.now() - self.takeover.t_detected
+        gcs = self.saved_gcs[1] if self.saved_gcs is not None else s.sysid
+        station = self.takeover.station
+        follows = "ArduSub's mixer follows the GCS's joystick" if station is None or station.sysid == gcs else (
+            f"ArduSub ignores the joystick of sysid {station.sysid} until its GCS sysid ({gcs}) is set to it")
+        return (f"handed over {took:.2f} s of vehicle time after it was seen: {state} in {mode}, thrusters on their "
+                f"motors ({follows}), overrides released")
+
+    def _neutral(self, confirm: float = SAFE_STOP_CONFIRM) -> bool:
+        """Send neutral and wait up to `confirm` vehicle s for SERVO_OUTPUT_RAW showing 1500 on SERVO1..8."""
         self._send_neutral()
         self.decoder.servo = None
-        deadline = time.monotonic() + self.session.clock.wall_seconds(SAFE_STOP_CONFIRM) + 0.3
+        slack = 0.3 if self.takeover is None else 0.0      # a late report is worth waiting for, unless handing over
+        deadline = time.monotonic() + self.session.clock.wall_seconds(confirm) + slack
         while time.monotonic() < deadline:
             self._pump(0.01)
             if self.decoder.servo is not None:

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rov_mav.simulation import Trace  # noqa: E402
+from rov_mav.offline.simulation import Trace  # noqa: E402
 
 DOF_LABELS = ("x (m)", "y (m)", "z (m)", "phi (rad)", "theta (rad)", "psi (rad)")
 ETA_NAMES = ("x", "y", "z", "phi", "theta", "psi")

@@ -11,7 +11,8 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from rov_mav import config, kernel
+from rov_mav import config
+from rov_mav.model import kernel
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
@@ -114,7 +115,7 @@ class Vehicle:
         return self.rigid_body_mass_matrix + np.diag(self.added_mass)
 
     def packed(self) -> np.ndarray:
-        """The flat float64 vector the compiled kernel reads (layout in `rov_mav.kernel`)."""
+        """The flat float64 vector the compiled kernel reads (layout in `rov_mav.model.kernel`)."""
         out = np.zeros(kernel.P_SIZE)
         out[kernel.P_M:kernel.P_M + 36] = self.mass_matrix.ravel()
         out[kernel.P_MINV:kernel.P_MINV + 36] = np.linalg.inv(self.mass_matrix).ravel()

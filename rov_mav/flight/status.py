@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from rov_mav.metrics import tracking_errors
-from rov_mav.tick import TickRecord
+from rov_mav.flight.tick import TickRecord
+from rov_mav.mission.metrics import tracking_errors
 
 REDRAW = 0.2          # wall s between redraws on a terminal
 

@@ -1,7 +1,7 @@
 """What the tuner minimises: the cost of a gain set (Eq. 2.32, printed or tracking form) over scenarios.
 
 A `TuningProblem` holds everything fixed during a tune. `costs` runs every (scenario, particle) pair through the
-compiled closed loop (`kernel.simulate_batch`) in chunks on a backend (threads here, Dask in `rov_mav.cluster`);
+compiled closed loop (`loop_kernel.simulate_batch`) in chunks on a backend (threads here, Dask in `rov_mav.offline.cluster`);
 each run is independent and seeded, so the result does not depend on the chunking or the backend.
 """
 
@@ -16,13 +16,16 @@ from typing import Protocol
 import numpy as np
 from scipy.optimize import linprog
 
-from rov_mav import config, dynamics, kernel, law, pso
-from rov_mav.controller import ControllerSettings, PositiveVec6
-from rov_mav.mission import Mission
-from rov_mav.scenarios import Scenario
-from rov_mav.simulation import Trace
-from rov_mav.thrusters import allocation_matrix
-from rov_mav.vehicle import Vehicle
+from rov_mav import config
+from rov_mav.control import law
+from rov_mav.control.controller import ControllerSettings, PositiveVec6
+from rov_mav.mission.missions import Mission
+from rov_mav.model import dynamics
+from rov_mav.model.thrusters import allocation_matrix
+from rov_mav.model.vehicle import Vehicle
+from rov_mav.offline import loop_kernel, pso
+from rov_mav.offline.scenarios import Scenario
+from rov_mav.offline.simulation import Trace
 
 COSTS = ("tracking", "report")
 AGGREGATES = ("mean", "worst")
@@ -104,7 +107,7 @@ class TuningProblem:
         n = gains.shape[0]
         cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
         empty = np.zeros((n, 0, 6))
-        kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, np.ascontiguousarray(gains),
+        loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, np.ascontiguousarray(gains),
                               *self.controller, self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights,
                               self.tau_ff, self.tau_max, empty, empty, empty, empty, empty, empty, cost, steps)
         return cost, steps

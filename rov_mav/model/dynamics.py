@@ -1,6 +1,6 @@
 """The 6-DOF model in readable matrix form (Eqs. 2.1-2.7, Appendix I), batched over a leading axis.
 
-This is the textbook statement of what `rov_mav.kernel` computes element by element; the tests hold the compiled
+This is the textbook statement of what `rov_mav.model.kernel` computes element by element; the tests hold the compiled
 kernel to it. Shapes: eta, nu (..., 6); matrices (..., 6, 6).
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.vehicle import Vehicle
+from rov_mav.model.vehicle import Vehicle
 
 
 def skew(a: np.ndarray) -> np.ndarray:

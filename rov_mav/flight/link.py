@@ -17,7 +17,8 @@ from dataclasses import dataclass
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
-from rov_mav.vehicle_clock import VehicleClock  # noqa: E402
+from rov_mav.flight.stations import OverrideEcho, StationWatch  # noqa: E402
+from rov_mav.flight.vehicle_clock import VehicleClock  # noqa: E402
 
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
@@ -48,6 +49,11 @@ class VehicleId:
     autopilot: int
 
 
+def mode_name(custom_mode: int) -> str:
+    """ArduSub's name of a custom_mode (MANUAL, POSHOLD, ...), or the number."""
+    return mavutil.mode_mapping_sub.get(custom_mode, str(custom_mode))
+
+
 def _enum_name(enum: str, value: int) -> str:
     entry = mavlink.enums.get(enum, {}).get(value)
     return entry.name if entry is not None else str(value)
@@ -65,7 +71,8 @@ class Session:
         self.override: list[int] | None = None   # PWMs held (resent at `override_rate` vehicle Hz)
         self.override_rate = 50.0
         self.interrupt: Callable[[], None] | None = None   # called while waiting; may raise to stop waiting
-        self.strangers: dict[str, int] = {}   # what other stations were seen doing, with counts
+        self.stations: StationWatch | None = None   # other stations on the link, once the vehicle is known
+        self.echo = OverrideEcho()            # the overrides sent recently, to recognise them in RC_CHANNELS
         self.taps: list[Callable[[object, bool], None]] = []   # (msg, outgoing) for every message in and out
         self.heartbeats = False
         self._next_heartbeat = 0.0
@@ -116,6 +123,7 @@ class Session:
                             f"{_enum_name('MAV_AUTOPILOT', msg.autopilot)}, not a submarine on ArduPilot (ArduSub)")
         self.vehicle = VehicleId(msg.get_srcSystem(), msg.get_srcComponent(), msg.type, msg.autopilot)
         self.heartbeat = msg
+        self.stations = StationWatch(self.vehicle.sysid)
         self.conn.target_system, self.conn.target_component = self.vehicle.sysid, self.vehicle.compid
         return self.vehicle
 
@@ -131,13 +139,18 @@ class Session:
         """Speak as `sysid` from now on (the vehicle accepts overrides only from its GCS sysid)."""
         self.conn.mav.srcSystem = sysid
 
-    def gcs_sysid(self) -> tuple[str, int] | None:
-        """(parameter name, value) of the vehicle's GCS sysid (MAV_GCS_SYSID from 4.7, else SYSID_MYGCS)."""
+    def gcs_sysid(self) -> tuple[str, int, int] | None:
+        """(parameter name, value, MAV_PARAM_TYPE) of the vehicle's GCS sysid (MAV_GCS_SYSID from 4.7, else
+        SYSID_MYGCS)."""
         found = self.get_params(GCS_SYSID_PARAMS, any_of=True)
         for name in GCS_SYSID_PARAMS:
             if name in found:
-                return name, int(found[name][0])
+                return name, int(found[name][0]), found[name][1]
         return None
+
+    def request_message(self, msg_id: int) -> None:
+        """MAV_CMD_REQUEST_MESSAGE once, without waiting: one report, no stream rate changed."""
+        self.fire(mavlink.MAV_CMD_REQUEST_MESSAGE, msg_id)
 
     # -- parameters ------------------------------------------------------------------------------------------
 
@@ -160,13 +173,25 @@ class Session:
 
     def set_param(self, name: str, value: float, ptype: int) -> bool:
         """PARAM_SET, confirmed by a PARAM_VALUE carrying the new value; False if never confirmed."""
+        return not self.set_params({name: (value, ptype)})
+
+    def set_params(self, values: dict[str, tuple[float, int]]) -> list[str]:
+        """PARAM_SET of every {name: (value, MAV_PARAM_TYPE)} at once, each confirmed by a PARAM_VALUE carrying the
+        new value (unconfirmed ones are sent again); returns the names never confirmed."""
+        left = dict(values)
         for _ in range(ATTEMPTS):
-            self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
-            reply = self.wait(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name
-                              and abs(m.param_value - value) < 1e-3, REPLY_TIMEOUT)
-            if reply is not None:
-                return True
-        return False
+            for name, (value, ptype) in left.items():
+                self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
+            deadline = time.monotonic() + REPLY_TIMEOUT
+            while left and (wait := deadline - time.monotonic()) > 0:
+                for msg, _ in self.poll(min(wait, 0.02)):
+                    if msg.get_type() == "PARAM_VALUE" and msg.param_id in left \
+                            and abs(msg.param_value - left[msg.param_id][0]) < 1e-3:
+                        del left[msg.param_id]
+                self._check_interrupt()
+            if not left:
+                break
+        return list(left)
 
     # -- commands --------------------------------------------------------------------------------------------
 
@@ -221,6 +246,8 @@ class Session:
         fields = list(values) + [0] * (RC_FIELDS - CHANNELS)        # 9-18: 0 = leave alone
         self._send("rc_channels_override", self.vehicle.sysid, self.vehicle.compid, *fields)
         self._last_override_t = self.clock.now()
+        if values[0] != RELEASE:
+            self.echo.sent_at(self._last_override_t, values)
 
     # -- pumping ---------------------------------------------------------------------------------------------
 
@@ -302,8 +329,8 @@ class Session:
                 self.clock.observe(boot_ms / 1000.0)
             if kind == "HEARTBEAT":
                 self.heartbeat = msg
-        elif kind == "RC_CHANNELS_OVERRIDE" or (kind == "HEARTBEAT" and msg.get_srcSystem() == self.sysid):
-            self.strangers[kind] = self.strangers.get(kind, 0) + 1
+        else:
+            self.stations.observe(msg, self.clock.now())
 
     def _outgoing(self, msg) -> None:
         for tap in self.taps:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rov_mav.dynamics import rotation
+from rov_mav.model.dynamics import rotation
 
 STATE_MESSAGES = ("ATTITUDE", "LOCAL_POSITION_NED")
 

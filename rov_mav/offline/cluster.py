@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from rov_mav.tuning import Batch, TuningProblem
+from rov_mav.offline.tuning import Batch, TuningProblem
 
 
 def _run(problem: TuningProblem, batch: Batch):
@@ -21,7 +21,10 @@ class DaskBackend:
     """A `tuning.Backend` on Dask workers."""
 
     def __init__(self, address: str):
-        from dask.distributed import Client, LocalCluster   # optional dependency: imported only when used
+        from dask.distributed import (  # optional dependency: imported only when used
+            Client,
+            LocalCluster,
+        )
 
         self._cluster = None
         if address.startswith("local:"):

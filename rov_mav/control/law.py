@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav import dynamics
+from rov_mav.model import dynamics
+from rov_mav.model.vehicle import Vehicle
 from rov_mav.units import wrap_angle
-from rov_mav.vehicle import Vehicle
 
 
 def tracking_error(eta: np.ndarray, eta_d: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.law import tracking_error
+from rov_mav.control.law import tracking_error
 
 
 def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

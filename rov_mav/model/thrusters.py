@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from rov_mav.vehicle import Vehicle
+from rov_mav.model.vehicle import Vehicle
 
 T200_DATA_FILE = "t200_performance.csv"
 NEUTRAL_PWM = 1500.0

@@ -1,6 +1,6 @@
 """The runner's actuation: wrench -> 8 thrusts -> 8 PWMs, at the battery voltage, within the thrust cap.
 
-One allocator and one T200 map for the project (`rov_mav.thrusters`); this only keeps their limits current: each
+One allocator and one T200 map for the project (`rov_mav.model.thrusters`); this only keeps their limits current: each
 thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also
 held in the PWM domain, at the highest voltage seen: the battery's voltage sags and recovers faster than the
 vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
@@ -11,7 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.thrusters import Allocator, AllocationInfo, load_t200, thrusts_to_pwms
+from rov_mav.model.thrusters import (
+    AllocationInfo,
+    Allocator,
+    load_t200,
+    thrusts_to_pwms,
+)
 
 VOLTAGE_STEP = 0.1        # V: rebuild the allocator when the battery moved this much
 DEFAULT_VOLTAGE = 16.0    # V: until the vehicle reports one (a charged 4S pack under load)

@@ -7,10 +7,10 @@ import signal
 import sys
 
 from rov_mav.commands.common import positive_float
-from rov_mav.environment import load_environment
+from rov_mav.model.environment import load_environment
+from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
 from sim_bridge.link import LinkError, parse_endpoint
 from sim_bridge.params import DEFAULT_FIRMWARE, FIRMWARES
-from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
 
 DESCRIPTION = """\
 A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a ground station (QGroundControl,
@@ -109,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
                           step=args.step, seed=args.seed, params=dict(args.param))
-    from sim_bridge.server import Bridge   # the physics stack loads only when a bridge runs
+    from sim_bridge.server import (
+        Bridge,  # the physics stack loads only when a bridge runs
+    )
 
     try:
         bridge = Bridge(config)

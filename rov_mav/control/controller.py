@@ -1,6 +1,6 @@
 """Controller settings (gains, adaptation) and the stateful controller the runner steps once per tick.
 
-The law and the adaptation themselves are in `rov_mav.kernel` (compiled, shared with simulate and tune).
+The law and the adaptation themselves are in `rov_mav.control.law_kernel` (compiled, shared with simulate and tune).
 """
 
 from __future__ import annotations
@@ -13,13 +13,14 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field
 
-from rov_mav import config, kernel
-from rov_mav.fuzzy import FuzzySchedule, load_fuzzy
-from rov_mav.vehicle import Vehicle
+from rov_mav import config
+from rov_mav.control import law_kernel
+from rov_mav.control.fuzzy import FuzzySchedule, load_fuzzy
+from rov_mav.model.vehicle import Vehicle
 
 PositiveVec6 = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=6, max_length=6)]
 
-SCHEDULES = {"baseline": kernel.SCHEDULE_NONE, "constant": kernel.SCHEDULE_CONSTANT, "fuzzy": kernel.SCHEDULE_FUZZY}
+SCHEDULES = {"baseline": law_kernel.SCHEDULE_NONE, "constant": law_kernel.SCHEDULE_CONSTANT, "fuzzy": law_kernel.SCHEDULE_FUZZY}
 
 
 class _ControllerSchema(config.StrictModel):
@@ -105,7 +106,7 @@ class Controller:
         """tau for the measured state against reference (18,), then the estimate advanced by dt seconds."""
         schedule, gamma_const, table, xmax, d_max = self._args
         tau, s, grad, gamma = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
-        kernel.controller_step(self._model, self.settings.k1, self.settings.k2, schedule, gamma_const, table, xmax,
+        law_kernel.controller_step(self._model, self.settings.k1, self.settings.k2, schedule, gamma_const, table, xmax,
                                d_max, np.asarray(eta, float), np.asarray(nu, float), np.asarray(reference, float),
                                float(dt), self.tau_hat, tau, s, grad, gamma)
         return ControlOutput(tau, self.tau_hat.copy(), s, grad, gamma)

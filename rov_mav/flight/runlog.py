@@ -14,7 +14,7 @@ import threading
 import time
 from pathlib import Path
 
-from rov_mav.tick import TickRecord
+from rov_mav.flight.tick import TickRecord
 
 DOF = ("x", "y", "z", "phi", "theta", "psi")
 BODY = ("u", "v", "w", "p", "q", "r")

@@ -1,15 +1,15 @@
 """The true simulated vehicle as a stateful object, stepped by whoever owns the clock (the bridge).
 
-It is a thin shell over the compiled model (`rov_mav.kernel.rk4_step`), the same one `simulate` integrates.
+It is a thin shell over the compiled model (`rov_mav.model.kernel.rk4_step`), the same one `simulate` integrates.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from rov_mav import kernel
-from rov_mav.environment import Environment
-from rov_mav.vehicle import Vehicle
+from rov_mav.model import kernel
+from rov_mav.model.environment import Environment
+from rov_mav.model.vehicle import Vehicle
 
 
 class Plant:

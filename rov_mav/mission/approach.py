@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from rov_mav import config
-from rov_mav.mission import Mission, _MissionSchema
+from rov_mav.mission.missions import Mission, _MissionSchema
 from rov_mav.units import wrap_angle
 
 AT_START_DISTANCE = 0.05          # m

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from rov_mav import config
-from rov_mav.environment import Environment, EnvironmentSchema
+from rov_mav.model.environment import Environment, EnvironmentSchema
 from rov_mav.units import Angle, wrap_angle
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]

@@ -14,7 +14,7 @@ from typing import Annotated
 from pydantic import Field
 
 from rov_mav import config
-from rov_mav.environment import Environment, EnvironmentSchema
+from rov_mav.model.environment import Environment, EnvironmentSchema
 
 
 class _ScenarioSchema(config.StrictModel):

@@ -6,11 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rov_mav import kernel
-from rov_mav.controller import ControllerSettings
-from rov_mav.environment import Environment
-from rov_mav.mission import Mission
-from rov_mav.vehicle import Vehicle
+from rov_mav.control.controller import ControllerSettings
+from rov_mav.mission.missions import Mission
+from rov_mav.model.environment import Environment
+from rov_mav.model.vehicle import Vehicle
+from rov_mav.offline import loop_kernel
 
 CONTROL_DT = 0.01     # s: the report's 100 Hz control rate
 SUBSTEPS = 1          # RK4 steps per control tick (see README: one RK4 step of 10 ms is converged to < 1e-6 m)
@@ -44,11 +44,11 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     cost = np.zeros(1)
     steps = np.zeros(1, dtype=np.int64)
     x0 = np.concatenate([mission.start_pose, np.zeros(6)])
-    kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.gains[None],
+    loop_kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.gains[None],
                           *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
-                          *kernel.printed_cost(ref), *logs, cost, steps)
+                          *loop_kernel.printed_cost(ref), *logs, cost, steps)
     done = int(steps[0])
     eta, nu, tau, tau_hat, s, gamma = (log[0, :done + 1] for log in logs)
     return Trace(t=np.arange(done + 1) * dt, eta=eta, nu=nu, reference=ref[:done + 1], tau=tau, tau_hat=tau_hat,
                  s=s, gamma=gamma, true_disturbance=environment.constant_disturbance,
-                 completed=done == n - 1 and cost[0] < kernel.DIVERGED_COST)
+                 completed=done == n - 1 and cost[0] < loop_kernel.DIVERGED_COST)

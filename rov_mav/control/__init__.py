@@ -1,0 +1,1 @@
+"""Control: the backstepping law and its disturbance adaptation (compiled and matrix forms), fuzzy rate schedules."""

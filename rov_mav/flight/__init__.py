@@ -1,0 +1,1 @@
+"""Flying a vehicle over MAVLink: the session, telemetry -> state, actuation, the runner, its log and status line."""

@@ -1,0 +1,173 @@
+"""Who else is on the link, and whose vehicle it is: the rules by which a run decides, before it sends anything,
+whether the vehicle is free, abandoned or someone else's, and by which it notices while flying that someone else
+is driving.
+
+On a real BlueROV2 the pilot's QGroundControl or Cockpit is connected the whole dive (as GCS sysid 255), sending
+heartbeats and, with a joystick, MANUAL_CONTROL at about 25 Hz. ArduSub 4.5 (ArduSub/GCS_Mavlink.cpp, MANUAL_CONTROL
+and RC_CHANNELS_OVERRIDE handling) applies both only from its GCS sysid, and `Sub::transform_manual_control_to_rc_
+override` (ArduSub/joystick.cpp) writes them over RC channels 1-11 - the eight thrusters on RCIN passthrough.
+Pure: no I/O; times are vehicle seconds.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+STICK_DEAD_BAND = 100        # of MANUAL_CONTROL's +-1000: a joystick further from rest than this is a pilot driving
+Z_REST = 500                 # MANUAL_CONTROL z (throttle) at rest, 0..1000 in ArduSub
+RC_STEADY = 3                # us: RC input samples further apart than this mean someone is writing it
+ECHO_TOLERANCE = 1           # us between an override we sent and the RC input the vehicle reports
+ECHO_WINDOW = (1.0, 0.5)     # vehicle s before / after a report in which our override must have been sent
+ECHO_MISSES = 2              # consecutive RC_CHANNELS reports unlike anything we sent: someone else writes RC
+UINT16_MAX = 65535
+
+
+@dataclass
+class Station:
+    """One other (sysid, compid) seen on the link, and what it did."""
+
+    sysid: int
+    compid: int
+    heartbeats: int = 0
+    manual_control: int = 0
+    overrides: int = 0
+    last_drive: float = -np.inf          # vehicle s of its last MANUAL_CONTROL or effective RC override
+    stick: tuple[int, int, int, int] | None = None    # (x, y, z, r) of its last MANUAL_CONTROL
+    deflected_at: float | None = None    # vehicle s its joystick was last beyond the dead band
+
+    def describe(self) -> str:
+        what = []
+        if self.manual_control:
+            x, y, z, r = self.stick
+            state = "moving" if self.deflected_at is not None and self.deflected_at >= self.last_drive else "at rest"
+            what.append(f"MANUAL_CONTROL x {self.manual_control}, joystick {state} (x={x}, y={y}, z={z}, r={r})")
+        if self.overrides:
+            what.append(f"RC_CHANNELS_OVERRIDE x {self.overrides}")
+        if self.heartbeats and not what:
+            what.append("heartbeats only")
+        return f"station sysid {self.sysid} component {self.compid} ({'; '.join(what)})"
+
+
+def stick_deflected(x: int, y: int, z: int, r: int) -> bool:
+    """A joystick beyond the dead band on any axis (x, y, r rest at 0; z rests at 500)."""
+    return max(abs(x), abs(y), abs(r), abs(z - Z_REST)) > STICK_DEAD_BAND
+
+
+def overrides_anything(values: list[int]) -> bool:
+    """Does an RC_CHANNELS_OVERRIDE's 18 fields set any channel (1-8: not 0/UINT16_MAX; 9-18: not 0/UINT16_MAX or
+    UINT16_MAX-1, which only ignore or release)?"""
+    return any(v not in (0, UINT16_MAX) for v in values[:8]) or \
+        any(v not in (0, UINT16_MAX, UINT16_MAX - 1) for v in values[8:])
+
+
+class StationWatch:
+    """Everything other stations send that the link shows us; feed it with `observe`."""
+
+    def __init__(self, vehicle_sysid: int):
+        self.vehicle_sysid = vehicle_sysid
+        self.stations: dict[tuple[int, int], Station] = {}
+
+    def observe(self, msg, t: float) -> None:
+        """One message that is neither from the vehicle nor ours, at vehicle time t."""
+        kind = msg.get_type()
+        if kind not in ("HEARTBEAT", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE"):
+            return
+        key = (msg.get_srcSystem(), msg.get_srcComponent())
+        station = self.stations.setdefault(key, Station(*key))
+        if kind == "HEARTBEAT":
+            station.heartbeats += 1
+        elif kind == "MANUAL_CONTROL" and msg.target == self.vehicle_sysid:
+            station.manual_control += 1
+            station.last_drive = t
+            station.stick = (msg.x, msg.y, msg.z, msg.r)
+            if stick_deflected(*station.stick):
+                station.deflected_at = t
+        elif kind == "RC_CHANNELS_OVERRIDE" and msg.target_system in (0, self.vehicle_sysid) and \
+                overrides_anything([getattr(msg, f"chan{i}_raw") for i in range(1, 19)]):
+            station.overrides += 1
+            station.last_drive = t
+
+    def drivers(self, since: float) -> list[Station]:
+        """Stations that sent MANUAL_CONTROL or an effective RC override at or after `since`."""
+        return [s for s in self.stations.values() if s.last_drive >= since]
+
+    def overriding(self, since: float) -> list[Station]:
+        return [s for s in self.drivers(since) if s.overrides]
+
+    def pilots_moving(self, since: float) -> list[Station]:
+        """Stations whose joystick was beyond the dead band at or after `since`."""
+        return [s for s in self.stations.values() if s.deflected_at is not None and s.deflected_at >= since]
+
+    def joysticks(self, since: float, sysid: int | None = None) -> list[Station]:
+        """Stations sending MANUAL_CONTROL since `since` (from `sysid` only, if given)."""
+        return [s for s in self.drivers(since) if s.manual_control and (sysid is None or s.sysid == sysid)]
+
+    def sysids(self) -> set[int]:
+        return {sysid for sysid, _ in self.stations}
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """What a run saw in its observation window, before sending anything."""
+
+    since: float                                 # vehicle s the window started
+    armed: bool
+    passthrough: list[str]                       # SERVOn_FUNCTION found on RCIN passthrough
+    rc: list[list[int]] = field(default_factory=list)   # RC_CHANNELS ch1-8 samples in the window
+
+
+@dataclass(frozen=True)
+class Verdict:
+    refusal: str | None                          # why the run must not touch the vehicle (one line), or None
+    abandoned: list[str]                         # passthrough outputs nobody drives: neutral first, restore at end
+    resting_pilots: list[Station]                # joysticks at rest: ArduSub applies them if on the GCS sysid
+
+
+def judge(sighting: Sighting, watch: StationWatch, force: bool) -> Verdict:
+    """Is the vehicle ours to take? Someone else's when it is armed, when a station drives it (an RC override, or a
+    joystick beyond the dead band), or when its RC input changes with no visible station. Passthrough outputs are
+    abandoned (a run that died) only when none of these holds. With `force` nothing is refused."""
+    refusals = []
+    drivers = watch.drivers(sighting.since)
+    if sighting.armed:
+        refusals.append("the vehicle is already armed by someone else (another station, or a run flying it)")
+    overriding = watch.overriding(sighting.since)
+    if overriding:
+        refusals.append("another station is driving it: " + ", ".join(s.describe() for s in overriding))
+    moving = [s for s in watch.pilots_moving(sighting.since) if s not in overriding]
+    if moving:
+        refusals.append("a pilot is driving it: " + ", ".join(s.describe() for s in moving))
+    rc = np.array(sighting.rc, dtype=float).reshape(-1, 8)
+    if len(rc) > 1 and not overriding and not moving and np.ptp(rc, axis=0).max() > RC_STEADY:
+        changing = [f"RC{i + 1} {int(rc[:, i].min())}-{int(rc[:, i].max())}" for i in range(8)
+                    if np.ptp(rc[:, i]) > RC_STEADY]
+        refusals.append("its RC input is changing with no station visible on this link (" + ", ".join(changing)
+                        + "): someone is driving it through another route")
+    resting = [s for s in drivers if s.manual_control and s not in moving and not s.overrides]
+    if refusals and not force:
+        return Verdict("; ".join(refusals), [], resting)
+    return Verdict(None, list(sighting.passthrough), resting)
+
+
+class OverrideEcho:
+    """Does the vehicle's RC input (RC_CHANNELS) show what this run sends? Keeps the overrides sent recently."""
+
+    def __init__(self, capacity: int = 512):
+        self.sent: deque[tuple[float, np.ndarray]] = deque(maxlen=capacity)
+        self.misses = 0
+
+    def sent_at(self, t: float, pwm) -> None:
+        self.sent.append((t, np.asarray(pwm[:8], dtype=float)))
+
+    def report(self, t: float, rc: list[int]) -> bool:
+        """An RC_CHANNELS report (ch1-8) at vehicle time t; True once ECHO_MISSES reports in a row matched none of
+        the overrides sent in the window around t."""
+        before, after = ECHO_WINDOW
+        row = np.asarray(rc, dtype=float)
+        ours = any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for ts, pwm in self.sent
+                   if t - before <= ts <= t + after)
+        self.misses = 0 if ours else self.misses + 1
+        return self.misses >= ECHO_MISSES

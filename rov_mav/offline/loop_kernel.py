@@ -1,0 +1,128 @@
+"""The compiled offline closed loop (Numba, cached): a batch of vehicles, each flown by the law through the plant,
+with the tuning cost (Eq. 2.32 and its tracking form) and the divergence and saturation cut-offs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rov_mav.control.law_kernel import controller_step
+from rov_mav.model.kernel import E_NOISE, FAST, compiled, rk4_step, wrap_angle
+
+# Limits beyond which a simulated vehicle counts as diverged (Assumption 1 and sanity bounds).
+MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular at pi/2)
+MAX_SPEED = 20.0        # m/s or rad/s, any component of nu
+DIVERGED_COST = 1.0e12
+
+
+def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """simulate_batch's (cost_weights, tau_ff, tau_max) for Eq. 2.32 as printed: Q = R = I, no saturation limit."""
+    return np.array([np.ones(6), np.zeros(6), np.ones(6)]), np.zeros((ref.shape[0], 6)), np.full(6, np.inf)
+
+
+@compiled
+def _diverged(x):
+    for i in range(12):
+        if not math.isfinite(x[i]):
+            return True
+    if abs(x[3]) > MAX_TILT or abs(x[4]) > MAX_TILT:
+        return True
+    for i in range(6, 12):
+        if abs(x[i]) > MAX_SPEED:
+            return True
+    return False
+
+
+@compiled
+def _saturated(tau, tau_max):
+    """True when a commanded |tau_i| exceeds tau_max_i: the thrusters cannot deliver it."""
+    for i in range(6):
+        if abs(tau[i]) > tau_max[i]:
+            return True
+    return False
+
+
+@compiled
+def _running_cost(weights, s, x, ref, tau, tau_ff):
+    """s^T Q s + e^T Q_e e + (tau - tau_ff)^T R (tau - tau_ff) at one tick (Eq. 2.32 and its tracking form)."""
+    total = 0.0
+    for i in range(6):
+        u = tau[i] - tau_ff[i]
+        total += weights[0, i] * s[i] * s[i] + weights[2, i] * u * u
+        if weights[1, i] != 0.0:
+            e = x[i] - ref[i]
+            if i >= 3:
+                e = wrap_angle(e)
+            total += weights[1, i] * e * e
+    return total
+
+
+@njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
+def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_xmax, d_max, ref, dt,
+                   substeps, x0, seeds, cost_weights, tau_ff, tau_max, eta_log, nu_log, tau_log, tau_hat_log, s_log,
+                   gamma_log, cost, steps_done):
+    """Closed-loop runs of a batch of vehicles: law + adaptation at 1/dt, plant by RK4 at dt/substeps.
+
+    plant (B, 92), env (B, 20): each run's true vehicle and environment; ctrl (92,): the controller's model;
+    gains (B, 12) = [k1 | k2]; ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
+    cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
+    e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
+    Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
+    |tau_i| exceeds tau_max (6,) (thruster saturation). steps_done (B,) receives the index of the last tick
+    logged (N for a run that completed; a run that ends early stops at the last state before it failed).
+    The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
+    Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
+    n_runs = gains.shape[0]
+    n_steps = ref.shape[0] - 1
+    record = eta_log.shape[1] > 0
+    h = dt / substeps
+    for b in range(n_runs):
+        np.random.seed(seeds[b])
+        x = x0.copy()
+        ws_plant = np.zeros(80)
+        eta_m = np.zeros(6)
+        nu_m = np.zeros(6)
+        tau_hat = np.zeros(6)
+        tau = np.zeros(6)
+        s = np.zeros(6)
+        grad = np.zeros(6)
+        gamma = np.zeros(6)
+        k1 = gains[b, 0:6]
+        k2 = gains[b, 6:12]
+        noise = env[b, E_NOISE:E_NOISE + 4]
+        total = 0.0
+        done = n_steps
+        for k in range(n_steps + 1):
+            for i in range(6):
+                sigma = noise[0] if i < 3 else noise[1]
+                eta_m[i] = x[i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+                sigma = noise[2] if i < 3 else noise[3]
+                nu_m[i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+            controller_step(ctrl, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta_m, nu_m, ref[k],
+                            dt, tau_hat, tau, s, grad, gamma)
+            if record:
+                for i in range(6):
+                    eta_log[b, k, i] = x[i]
+                    nu_log[b, k, i] = x[6 + i]
+                    tau_log[b, k, i] = tau[i]
+                    tau_hat_log[b, k, i] = tau_hat[i]
+                    s_log[b, k, i] = s[i]
+                    gamma_log[b, k, i] = gamma[i]
+            if k == n_steps:
+                break
+            if _saturated(tau, tau_max):
+                done = k
+                total = DIVERGED_COST
+                break
+            total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
+            for j in range(substeps):
+                rk4_step(plant[b], env[b], x, tau, k * dt + j * h, h, ws_plant)
+            if _diverged(x):
+                done = k
+                total = DIVERGED_COST
+                break
+        cost[b] = total
+        steps_done[b] = done

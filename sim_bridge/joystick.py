@@ -1,0 +1,62 @@
+"""MANUAL_CONTROL -> RC overrides of channels 1-11, as ArduSub 4.5 (4.5.3) maps a pilot's joystick.
+
+Source: ArduSub/joystick.cpp, `Sub::init_joystick` (the gain, fixed at boot) and
+`Sub::transform_manual_control_to_rc_override` (the mapping), called by `GCS_MAVLINK_Sub::handle_manual_control_axes`
+(ArduSub/GCS_Mavlink.cpp). With no buttons held and no trims or input hold (buttons are ignored here):
+
+    rpy   = 0.4 * gain                 throttle = 0.8 * gain * JS_THR_GAIN      base = int16(1500 - 500 * throttle)
+    ch1 pitch   = 1500 + s             ch2 roll  = 1500 + t          (s, t are added whether or not flagged valid)
+    ch3 throttle = z * throttle + base ch4 yaw   = r * rpy + 1500
+    ch5 forward = x * rpy + 1500       ch6 lateral = y * rpy + 1500
+    ch7 camera pan 1500, ch8 camera tilt 1500, ch9 lights 1 = RC9_MIN, ch10 lights 2 = RC10_MIN (at boot), ch11 video
+    switch 1100
+
+in float32, converted to int16 (truncated toward zero, then wrapped modulo 2^16 as GCC does; a float beyond int32 is
+undefined in C++, here it saturates to int32 first) and only then clamped to 1100-1900. So a joystick at rest (x = y = r = 0, z = 500) puts
+1500 on channels 1-8. Measured on the 4.5.3 SITL binary: gain 0.5 by default; x=400, y=-200, z=700, r=100 gave
+1500, 1500, 1580, 1520, 1580, 1460, 1500, 1500, 1100, 1100, 1100; x=-1 gave 1499 on channel 5 (truncation); s=100,
+t=-200 gave 1600 and 1300 on channels 1 and 2; a MANUAL_CONTROL replaced an RC_CHANNELS_OVERRIDE of 7-11.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CHANNELS = 11
+PWM_LOW, PWM_HIGH = 1100, 1900
+CENTER = 1500
+VIDEO_SWITCH = 1100
+_F32 = np.float32
+
+
+def joystick_gain(default: float, low: float, high: float, steps: int) -> float:
+    """`Sub::init_joystick`: JS_GAIN_DEFAULT within JS_GAIN_MIN..MAX (or, if it lies outside and there are several
+    JS_GAIN_STEPS, the step nearest the middle), then limited to 0.1..1."""
+    steps = max(int(steps), 1)
+    if steps == 1 or low - 0.01 < default < high + 0.01:
+        gain = min(max(default, low), high)
+    else:
+        gain = low + (steps // 2 - 1) * (high - low) / (steps - 1)
+    return float(_F32(min(max(gain, 0.1), 1.0)))
+
+
+def _int16(value) -> int:
+    """C++'s conversion to int16_t on ArduPilot's compilers: truncate, keep the low 16 bits."""
+    whole = int(min(max(np.trunc(value), -2**31), 2**31 - 1))
+    return (whole + 32768) % 65536 - 32768
+
+
+def _pwm(value) -> int:
+    return min(max(_int16(value), PWM_LOW), PWM_HIGH)
+
+
+def rc_channels(x: int, y: int, z: int, r: int, s: int, t: int, gain: float, throttle_gain: float,
+                lights: tuple[int, int]) -> list[int]:
+    """The 11 override values (channels 1..11, us) of one MANUAL_CONTROL's axes."""
+    rpy = _F32(0.4 * gain)
+    throttle = _F32(0.8 * gain * throttle_gain)
+    base = _int16(_F32(CENTER - 500 * throttle))
+    return [_pwm(s + CENTER), _pwm(t + CENTER),
+            _pwm(_F32(z) * throttle + base), _pwm(_F32(r) * rpy + CENTER),
+            _pwm(_F32(x) * rpy + CENTER), _pwm(_F32(y) * rpy + CENTER),
+            CENTER, CENTER, lights[0], lights[1], VIDEO_SWITCH]

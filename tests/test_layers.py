@@ -1,0 +1,67 @@
+"""The layers DESIGN.md describes, enforced: every import in the package points down (or sideways where allowed)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Each layer and the layers it may import (besides itself and the foundation modules rov_mav.config/units).
+MAY_IMPORT = {
+    "rov_mav.model": set(),
+    "rov_mav.control": {"rov_mav.model"},
+    "rov_mav.mission": {"rov_mav.model", "rov_mav.control"},
+    "rov_mav.offline": {"rov_mav.model", "rov_mav.control", "rov_mav.mission"},
+    "rov_mav.flight": {"rov_mav.model", "rov_mav.control", "rov_mav.mission"},
+    "sim_bridge": {"rov_mav.model"},
+    "rov_mav.telemetry": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline",
+                          "rov_mav.flight"},
+}
+FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units"}
+# Libraries that belong to the shell: none of them may be imported below it.
+SHELL_LIBRARIES = {"pymavlink", "rerun", "socket", "argparse", "select", "threading"}
+CORE = ("rov_mav.model", "rov_mav.control", "rov_mav.mission")
+
+
+def _modules():
+    for path in sorted((ROOT / "rov_mav").rglob("*.py")) + sorted((ROOT / "sim_bridge").rglob("*.py")):
+        name = ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+        yield name, path
+
+
+def _imports(path: Path) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+            found |= {f"{node.module}.{alias.name}" for alias in node.names}
+    return found
+
+
+def _foundation(target: str) -> bool:
+    return target == "rov_mav" or any(target == f or target.startswith(f + ".") for f in FOUNDATION - {"rov_mav"})
+
+
+def _layer(module: str) -> str | None:
+    return next((layer for layer in MAY_IMPORT if module == layer or module.startswith(layer + ".")), None)
+
+
+@pytest.mark.parametrize("module,path", list(_modules()), ids=lambda v: v if isinstance(v, str) else "")
+def test_imports_point_down(module, path):
+    layer = _layer(module)
+    if layer is None:          # the CLI and commands sit on top and may import anything
+        return
+    allowed = MAY_IMPORT[layer] | {layer}
+    for target in _imports(path):
+        top = target.split(".")[0]
+        if top in ("rov_mav", "sim_bridge") and not _foundation(target):
+            target_layer = _layer(target)
+            assert target_layer in allowed, \
+                f"{module} imports {target} ({target_layer}), above or beside its layer {layer}"
+        if layer in CORE:
+            assert top not in SHELL_LIBRARIES, f"{module} (core layer {layer}) imports the shell library {top}"
