@@ -1,0 +1,60 @@
+"""`rov-mav run` against ArduPilot's own ArduSub SITL (ARDUSUB_SITL): the real autopilot's parameters, override
+handling, passthrough and arming. One SITL instance for the module (its EKF needs ~40 s of simulated time for a
+position), runs one after another on its SERIAL1, an independent checker on SERIAL0."""
+
+from __future__ import annotations
+
+import signal
+
+import pytest
+from run_helpers import RunnerProcess, short_mission
+from sitl_helpers import SPEEDUP, Checker, Sitl
+
+POSITION_WAIT = 120.0          # wall s for the EKF's first position on a loaded machine
+
+
+@pytest.fixture(scope="module")
+def sitl(tmp_path_factory):
+    with Sitl(tmp_path_factory.mktemp("sitl")) as instance:
+        instance.wait_for_port(instance.port0)
+        checker = Checker(instance.port0)
+        try:
+            checker.wait_for_position(POSITION_WAIT)
+            yield instance, checker
+        finally:
+            checker.close()
+
+
+def _run(sitl: Sitl, mission, *args: str) -> RunnerProcess:
+    return RunnerProcess("--target", f"tcp:127.0.0.1:{sitl.port1}", str(mission), "--rerun", "off", *args)
+
+
+def test_a_mission_on_sitl_completes_and_leaves_the_vehicle_safe(sitl, tmp_path):
+    instance, checker = sitl
+    with _run(instance, short_mission(tmp_path, goto_x=2.0, hold=3.0)) as run:
+        assert run.wait() == 0, run.output
+    checker.assert_left_safe()
+    assert "SYSID_MYGCS = 255" in run.output             # ArduSub 4.5's name for the GCS sysid
+    assert "completed" in run.output
+
+
+def test_sigterm_mid_mission_on_sitl_leaves_it_safe(sitl, tmp_path):
+    instance, checker = sitl
+    with _run(instance, short_mission(tmp_path, goto_x=4.0, hold=30.0)) as run:
+        run.wait_for("armed in MANUAL")
+        assert checker.servo_functions() == list(range(51, 59))
+        run.signal(signal.SIGTERM)
+        assert run.wait() == 128 + signal.SIGTERM, run.output
+    checker.assert_left_safe()
+
+
+def test_a_dry_run_on_sitl_changes_nothing(sitl, tmp_path):
+    instance, checker = sitl
+    before = checker.servo_functions()
+    with _run(instance, short_mission(tmp_path, goto_x=0.5, hold=1.0), "--dry-run") as run:
+        assert run.wait() == 0, run.output
+    assert checker.servo_functions() == before == list(range(33, 41))
+    assert not checker.armed() and checker.param("SYSID_MYGCS") == 255
+    rc = checker.fresh("RC_CHANNELS")
+    assert [getattr(rc, f"chan{i}_raw") for i in range(1, 9)] == [1500] * 8     # no override ever arrived
+    assert "dry run: no parameter changed, nothing armed, no override sent" in run.output
