@@ -1,17 +1,51 @@
 """Pacing a fixed-step simulation against the wall clock at a speedup, and measuring how well it keeps time.
 
 Step k of h seconds is due at wall time anchor + (k h - anchor_sim) / speedup. Its lateness (actual start minus due
-time, wall seconds) is recorded; that is the loop jitter. If the loop falls more than `max_lag` wall seconds
+time, wall seconds) is recorded in a fixed-size histogram (memory stays flat however long the bridge runs); that is the loop jitter. If the loop falls more than `max_lag` wall seconds
 behind (an overloaded machine), it re-anchors instead of bursting to catch up, and counts a slip: simulated time
 then runs slower than asked, but every step stays h long.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from array import array
 
 import numpy as np
+
+BINS_PER_DECADE = 100                 # percentiles to within 2.3 % of their value
+SMALLEST, LARGEST = 1e-7, 100.0       # s: lateness below counts in the first bin, above in the last
+
+
+class LatenessHistogram:
+    """Count, mean, max and log-binned percentiles of non-negative lateness values, in constant memory."""
+
+    def __init__(self):
+        decades = math.log10(LARGEST / SMALLEST)
+        self.edges = SMALLEST * 10.0 ** (np.arange(int(decades * BINS_PER_DECADE) + 1) / BINS_PER_DECADE)
+        self.counts = np.zeros(self.edges.size + 1, dtype=np.int64)   # [0, e0), [e0, e1), ..., [e_last, inf)
+        self.count = 0
+        self.total = 0.0
+        self.max = 0.0
+        self.last = 0.0
+
+    def add(self, late: float) -> None:
+        self.counts[int(np.searchsorted(self.edges, late, side="right"))] += 1
+        self.count += 1
+        self.total += late
+        self.max = max(self.max, late)
+        self.last = late
+
+    def percentile(self, q: float) -> float:
+        """The q-th percentile (0-100): the geometric centre of the bin holding it (0 below the first edge)."""
+        if not self.count:
+            return 0.0
+        k = int(np.searchsorted(np.cumsum(self.counts), math.ceil(q / 100.0 * self.count)))
+        if k == 0:
+            return 0.0
+        if k >= self.edges.size:
+            return self.max
+        return min(math.sqrt(self.edges[k - 1] * self.edges[k]), self.max)
 
 
 class Pacer:
@@ -21,7 +55,7 @@ class Pacer:
         self.h = h
         self.max_lag = max_lag
         self.clock = clock
-        self.lateness = array("d")
+        self.lateness = LatenessHistogram()
         self.slips = 0
         self.wall_start = clock()
         self.sim_start = 0.0
@@ -47,7 +81,7 @@ class Pacer:
             self.slips += 1
             self._anchor(t)
             late = 0.0
-        self.lateness.append(late)
+        self.lateness.add(late)
         return True
 
     def wait(self, t: float) -> float:
@@ -57,15 +91,15 @@ class Pacer:
     def summary(self, t: float) -> dict:
         """Achieved speedup and lateness statistics (ms) since the start, at sim time t."""
         wall = self.clock() - self.wall_start
-        late = np.frombuffer(self.lateness, dtype=float) * 1e3 if len(self.lateness) else np.zeros(1)
+        late = self.lateness
         return {
             "sim_time": t,
             "wall_time": wall,
             "speedup": t / wall if wall > 0 else 0.0,
-            "steps": len(self.lateness),
+            "steps": late.count,
             "slips": self.slips,
-            "late_mean_ms": float(late.mean()),
-            "late_p50_ms": float(np.percentile(late, 50)),
-            "late_p99_ms": float(np.percentile(late, 99)),
-            "late_max_ms": float(late.max()),
+            "late_mean_ms": 1e3 * late.total / late.count if late.count else 0.0,
+            "late_p50_ms": 1e3 * late.percentile(50),
+            "late_p99_ms": 1e3 * late.percentile(99),
+            "late_max_ms": 1e3 * late.max,
         }

@@ -14,7 +14,7 @@ from sim_bridge import mixer
 from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.joystick import joystick_gain, rc_channels
-from sim_bridge.pacing import Pacer
+from sim_bridge.pacing import LatenessHistogram, Pacer
 from sim_bridge.params import INT8, INT16, REAL32, Params, stored_value
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
@@ -273,9 +273,22 @@ def test_pacer_measures_lateness_and_reanchors_when_overloaded():
     assert pacer.due(0.0) and not pacer.due(0.01)
     assert pacer.wait(0.01) == pytest.approx(0.001)
     now[0] += 0.0015
-    assert pacer.due(0.01) and pacer.lateness[-1] == pytest.approx(0.0005)
+    assert pacer.due(0.01) and pacer.lateness.last == pytest.approx(0.0005)
     now[0] += 5.0                                               # a stall
     assert pacer.due(0.02) and pacer.slips == 1 and pacer.wait(0.03) == pytest.approx(0.001)
+
+
+def test_lateness_histogram_percentiles_match_numpy_within_a_bin():
+    rng = np.random.default_rng(3)
+    values = np.concatenate([rng.exponential(2e-4, 20000), rng.uniform(0.01, 0.05, 300), np.zeros(500)])
+    histogram = LatenessHistogram()
+    for v in values:
+        histogram.add(float(v))
+    assert histogram.count == values.size and histogram.max == values.max()
+    assert histogram.total / histogram.count == pytest.approx(values.mean(), rel=1e-9)
+    for q in (10, 50, 90, 99, 99.9):
+        assert histogram.percentile(q) == pytest.approx(np.percentile(values, q), rel=0.03, abs=1e-7)
+    assert histogram.counts.nbytes < 1e4                      # the same memory after a million steps as after one
 
 
 # -- protocol --------------------------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.history import History
 from rov_mav.flight.link import mavlink
 from rov_mav.flight.vehicle_clock import VehicleClock
 from rov_mav.flight.vehicle_state import StateDecoder
@@ -85,3 +86,14 @@ def test_reversed_thrusters_get_mirrored_pwm(vehicle):
     np.testing.assert_array_equal(mirrored[[0, 2, 3, 4, 5, 7]], straight[[0, 2, 3, 4, 5, 7]])
     np.testing.assert_array_equal(mirrored[[1, 6]], 3000 - straight[[1, 6]])
     assert not act.beyond_cap(mirrored).any()
+
+
+def test_history_keeps_every_row_across_growth():
+    history = History(capacity=2, t=1, eta=6)
+    rows = np.random.default_rng(0).normal(size=(37, 7))
+    for row in rows:
+        history.append(t=row[0], eta=row[1:])
+    assert history.column("t").shape == (37,) and history.column("eta").shape == (37, 6)
+    np.testing.assert_array_equal(history.column("t"), rows[:, 0])
+    np.testing.assert_array_equal(history.column("eta"), rows[:, 1:])
+    assert History(t=1, eta=6).column("eta").shape == (0, 6)

@@ -30,6 +30,7 @@ import numpy as np
 
 from rov_mav.control.controller import Controller
 from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
 from rov_mav.flight.tick import TickRecord
@@ -162,9 +163,8 @@ class Runner:
         self.stale_episodes = 0
         self.warned: set[str] = set()
         self._ticks: deque[float] = deque()
-        self._log = {k: [] for k in ("t", "eta", "eta_d", "tau", "tau_hat")}
-        self._latency: list[float] = []
-        self._tick_times: list[float] = []
+        self._log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
+        self._loop = History(tick_time=1, latency_ms=1)
 
     # -- top level -------------------------------------------------------------------------------------------
 
@@ -568,12 +568,10 @@ class Runner:
         age = self.session.clock.now() - state.t
         self._count_tick(state.t, latency)
         if t >= 0:
-            for key, value in (("t", t), ("eta", state.eta), ("eta_d", reference[:6]), ("tau", out.tau),
-                               ("tau_hat", out.tau_hat)):
-                self._log[key].append(value)
+            self._log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
         record = TickRecord(t=t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau, tau_hat=out.tau_hat,
                             s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
-                            telemetry_age=age, control_rate=len(self._ticks),
+                            telemetry_age=age, latency=latency, control_rate=len(self._ticks),
                             battery_voltage=self.actuation.voltage, true_disturbance=self.true_disturbance)
         for sink in self.sinks:
             sink.log_tick(record)
@@ -583,8 +581,7 @@ class Runner:
         self._ticks.append(t)
         while self._ticks and self._ticks[0] <= t - 1.0:
             self._ticks.popleft()
-        self._latency.append(latency * 1e3)
-        self._tick_times.append(t)
+        self._loop.append(tick_time=t, latency_ms=latency * 1e3)
 
     def _check_limits(self, state: State, reference: np.ndarray) -> None:
         lim = self.options.limits
@@ -744,13 +741,11 @@ class Runner:
         return report
 
     def _result(self, code: int, reason: str, completed: bool, report: list[str]) -> RunResult:
-        log = {k: np.array(v, dtype=float) for k, v in self._log.items()}
-        empty6 = np.zeros((0, 6))
+        log = self._log
         return RunResult(
-            code=code, reason=reason, completed=completed, t=log["t"],
-            eta=log["eta"] if log["eta"].size else empty6, eta_d=log["eta_d"] if log["eta_d"].size else empty6,
-            tau=log["tau"] if log["tau"].size else empty6, tau_hat=log["tau_hat"] if log["tau_hat"].size else empty6,
-            latency_ms=np.array(self._latency), tick_times=np.array(self._tick_times), report=report)
+            code=code, reason=reason, completed=completed, t=log.column("t"), eta=log.column("eta"),
+            eta_d=log.column("eta_d"), tau=log.column("tau"), tau_hat=log.column("tau_hat"),
+            latency_ms=self._loop.column("latency_ms"), tick_times=self._loop.column("tick_time"), report=report)
 
 
 _MISSING_HELP = {

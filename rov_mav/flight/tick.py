@@ -23,6 +23,7 @@ class TickRecord:
     pwm: np.ndarray                 # (8,) commanded PWM, us
     progress: float                 # mission progress in [0, 1]
     telemetry_age: float            # s, age of the newest state sample when the command left
+    latency: float                  # wall s from that sample's arrival to the command leaving
     control_rate: float             # Hz, achieved over the last second of vehicle time
     battery_voltage: float          # V
     true_disturbance: np.ndarray | None = None   # (6,) when known (simulation)
