@@ -128,6 +128,14 @@ class Checker:
                 return msg.param_value
         raise AssertionError(f"SITL did not report {name}")
 
+    def achieved_speedup(self, wall: float = 3.0) -> float:
+        """Simulated seconds per wall second over `wall` s, from SYSTEM_TIME.time_boot_ms."""
+        first = self.fresh("SYSTEM_TIME")
+        t0 = time.monotonic()
+        time.sleep(wall)
+        last = self.fresh("SYSTEM_TIME")
+        return (last.time_boot_ms - first.time_boot_ms) / 1e3 / (time.monotonic() - t0)
+
     def wait_for_position(self, timeout: float) -> None:
         """Until the EKF has a position (LOCAL_POSITION_NED answers)."""
         self.fresh("LOCAL_POSITION_NED", timeout)

@@ -29,6 +29,15 @@ def _run(sitl: Sitl, mission, *args: str) -> RunnerProcess:
     return RunnerProcess("--target", f"tcp:127.0.0.1:{sitl.port1}", str(mission), "--rerun", "off", *args)
 
 
+def test_sitl_runs_faster_than_the_wall(sitl):
+    """Every timeout in these tests is vehicle time, so a machine that holds less than SPEEDUP only makes them
+    slower; but SITL must run ahead of the wall, or --speedup was not taken."""
+    _, checker = sitl
+    achieved = checker.achieved_speedup()
+    print(f"SITL speedup achieved: {achieved:.2f} (asked {SPEEDUP:g})")
+    assert 1.2 < achieved < SPEEDUP * 1.1
+
+
 def test_a_mission_on_sitl_completes_and_leaves_the_vehicle_safe(sitl, tmp_path):
     instance, checker = sitl
     with _run(instance, short_mission(tmp_path, goto_x=2.0, hold=3.0)) as run:
