@@ -92,10 +92,10 @@ class RunnerProcess:
         self.proc.wait()
 
 
-def bridge_with_checker(workdir: Path, *args: str) -> tuple[BridgeProcess, int]:
-    """A bridge at SPEEDUP listening on two ports: BridgeProcess.port for the runner, the other for a checker."""
+def bridge_with_checker(workdir: Path, *args: str, speedup: float = SPEEDUP) -> tuple[BridgeProcess, int]:
+    """A bridge at `speedup` listening on two ports: BridgeProcess.port for the runner, the other for a checker."""
     checker_port = free_port()
-    bridge = BridgeProcess(workdir, "--listen", f"udpin:127.0.0.1:{checker_port}", *args, speedup=SPEEDUP)
+    bridge = BridgeProcess(workdir, "--listen", f"udpin:127.0.0.1:{checker_port}", *args, speedup=speedup)
     return bridge, checker_port
 
 

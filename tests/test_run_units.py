@@ -10,6 +10,7 @@ import pytest
 from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import mavlink
+from rov_mav.flight.stations import ECHO_MEMORY, OverrideEcho
 from rov_mav.flight.vehicle_clock import VehicleClock
 from rov_mav.flight.vehicle_state import StateDecoder
 from rov_mav.mission.approach import approach
@@ -97,3 +98,21 @@ def test_history_keeps_every_row_across_growth():
     np.testing.assert_array_equal(history.column("t"), rows[:, 0])
     np.testing.assert_array_equal(history.column("eta"), rows[:, 1:])
     assert History(t=1, eta=6).column("eta").shape == (0, 6)
+
+
+def test_override_echo_knows_its_own_commands_by_value_and_a_strangers_after_two_reports():
+    echo = OverrideEcho()
+    ours = [[1500 + k, 1500 - k, 1510, 1490, 1500, 1500, 1520 + k, 1480] for k in range(300)]
+    for pwm in ours:
+        echo.sent_now(pwm)
+    assert not echo.report(ours[0]) and not echo.report(ours[-1])         # however late the report arrives
+    stranger = [1500] * 8
+    assert not echo.report(stranger)                                       # one odd report is not enough
+    assert not echo.report(ours[10])                                       # ... and ours again resets the count
+    assert not echo.report(stranger) and echo.report(stranger)
+    echo.misses = 0
+    assert not echo.report([v + 1 for v in ours[5]]) and not echo.report([v - 1 for v in ours[5]])   # within 1 us
+    for _ in range(ECHO_MEMORY):
+        echo.sent_now([1600] * 8)
+    echo.misses = 0
+    assert not echo.report(ours[-1]) and echo.report(ours[-1])            # forgotten after ECHO_MEMORY sends

@@ -247,7 +247,7 @@ class Session:
         self._send("rc_channels_override", self.vehicle.sysid, self.vehicle.compid, *fields)
         self._last_override_t = self.clock.now()
         if values[0] != RELEASE:
-            self.echo.sent_at(self._last_override_t, values)
+            self.echo.sent_now(values)
 
     # -- pumping ---------------------------------------------------------------------------------------------
 

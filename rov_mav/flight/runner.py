@@ -516,8 +516,7 @@ class Runner:
             if msg.custom_mode != MANUAL:
                 mode = mode_name(msg.custom_mode)
                 raise PilotTakeover(f"the vehicle's mode was changed to {mode} by someone else", now)
-        elif kind == "RC_CHANNELS" and s.echo.report(msg.time_boot_ms / 1000.0,
-                                                     [getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
+        elif kind == "RC_CHANNELS" and s.echo.report([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
             raise PilotTakeover("the vehicle's RC input is not what this run sends (RC_CHANNELS "
                                 f"{[getattr(msg, f'chan{i}_raw') for i in range(1, CHANNELS + 1)]}): another station is "
                                 "writing it", now)

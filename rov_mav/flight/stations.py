@@ -20,7 +20,7 @@ STICK_DEAD_BAND = 100        # of MANUAL_CONTROL's +-1000: a joystick further fr
 Z_REST = 500                 # MANUAL_CONTROL z (throttle) at rest, 0..1000 in ArduSub
 RC_STEADY = 3                # us: RC input samples further apart than this mean someone is writing it
 ECHO_TOLERANCE = 1           # us between an override we sent and the RC input the vehicle reports
-ECHO_WINDOW = (1.0, 0.5)     # vehicle s before / after a report in which our override must have been sent
+ECHO_MEMORY = 512            # overrides remembered (>= 5 vehicle s at 50 Hz plus the held resends)
 ECHO_MISSES = 2              # consecutive RC_CHANNELS reports unlike anything we sent: someone else writes RC
 UINT16_MAX = 65535
 
@@ -153,21 +153,23 @@ def judge(sighting: Sighting, watch: StationWatch, force: bool) -> Verdict:
 
 
 class OverrideEcho:
-    """Does the vehicle's RC input (RC_CHANNELS) show what this run sends? Keeps the overrides sent recently."""
+    """Does the vehicle's RC input (RC_CHANNELS) show what this run sends? Keeps the last ECHO_MEMORY overrides.
 
-    def __init__(self, capacity: int = 512):
-        self.sent: deque[tuple[float, np.ndarray]] = deque(maxlen=capacity)
+    Matched by value, not by time: a report is ours when it equals any recent override. Timestamps would compare
+    the vehicle's time_boot_ms with our estimate of it at sending, which runs ahead whenever the vehicle stalls (a
+    loaded machine), and so would take our own command for a stranger's."""
+
+    def __init__(self, capacity: int = ECHO_MEMORY):
+        self.sent: deque[np.ndarray] = deque(maxlen=capacity)
         self.misses = 0
 
-    def sent_at(self, t: float, pwm) -> None:
-        self.sent.append((t, np.asarray(pwm[:8], dtype=float)))
+    def sent_now(self, pwm) -> None:
+        self.sent.append(np.asarray(pwm[:8], dtype=float))
 
-    def report(self, t: float, rc: list[int]) -> bool:
-        """An RC_CHANNELS report (ch1-8) at vehicle time t; True once ECHO_MISSES reports in a row matched none of
-        the overrides sent in the window around t."""
-        before, after = ECHO_WINDOW
+    def report(self, rc: list[int]) -> bool:
+        """An RC_CHANNELS report (ch1-8); True once ECHO_MISSES reports in a row matched none of the overrides
+        remembered."""
         row = np.asarray(rc, dtype=float)
-        ours = any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for ts, pwm in self.sent
-                   if t - before <= ts <= t + after)
+        ours = any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for pwm in self.sent)
         self.misses = 0 if ours else self.misses + 1
         return self.misses >= ECHO_MISSES
