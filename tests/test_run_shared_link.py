@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import time
+from contextlib import contextmanager
 
 from mavlink_hub import Hub
 from run_helpers import (
@@ -37,6 +38,26 @@ def _station(hub: Hub, sysid: int = 255) -> Gcs:
     return station
 
 
+@contextmanager
+def _shared_link(tmp_path, speedup: float = SPEEDUP):
+    """A bridge behind a router (the hub) and an independent checker on the bridge's second port."""
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=speedup)
+    with bridge, Hub(bridge.port) as hub:
+        gcs = checker(checker_port)
+        try:
+            yield hub, gcs
+        finally:
+            gcs.close()
+
+
+@contextmanager
+def _closing(station: Gcs):
+    try:
+        yield station
+    finally:
+        station.close()
+
+
 def _handover_time(output: str) -> float:
     found = re.search(r"handed over ([0-9.]+) s of vehicle time", output)
     assert found, output
@@ -47,19 +68,14 @@ def test_a_second_run_refuses_in_one_line_and_the_first_completes_unaffected(tmp
     # Two runners and a bridge on two cores: at speedup 4 the first run holds its control rate while the second
     # starts, so its tracking can be compared with a run alone; it is still flying when the second has decided.
     mission = short_mission(tmp_path, hold=60.0)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=4.0)
-    with bridge, Hub(bridge.port) as hub:
-        gcs = checker(checker_port)
-        try:
-            with _run(hub, mission) as first:
-                first.wait_for("armed in MANUAL")
-                with _run(hub, mission) as second:
-                    assert second.wait() == 1, second.output
-                assert first.proc.poll() is None, "the first run ended before the second had decided"
-                assert first.wait() == 0, first.output
-            assert_left_safe(gcs)
-        finally:
-            gcs.close()
+    with _shared_link(tmp_path, speedup=4.0) as (hub, gcs):
+        with _run(hub, mission) as first:
+            first.wait_for("armed in MANUAL")
+            with _run(hub, mission) as second:
+                assert second.wait() == 1, second.output
+            assert first.proc.poll() is None, "the first run ended before the second had decided"
+            assert first.wait() == 0, first.output
+        assert_left_safe(gcs)
     refusal = [line for line in second.output.splitlines() if "stopping: refusing to take the vehicle" in line]
     assert len(refusal) == 1 and "already armed" in refusal[0] and "RC_CHANNELS_OVERRIDE" in refusal[0], second.output
     assert "nothing had been changed on the vehicle" in second.output
@@ -71,44 +87,29 @@ def test_a_second_run_refuses_in_one_line_and_the_first_completes_unaffected(tmp
 
 def test_another_stations_overrides_mid_run_hand_the_vehicle_over(tmp_path):
     mission = short_mission(tmp_path, hold=60.0)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with bridge, Hub(bridge.port) as hub:
-        gcs = checker(checker_port)
-        try:
-            with _run(hub, mission) as run:
-                run.wait_for("armed in MANUAL")
-                time.sleep(1.0)
-                intruder = _station(hub)
-                try:
-                    intruder.override = [1500] * 8
-                    intruder.start_pump()
-                    assert run.wait() == 3, run.output
-                finally:
-                    intruder.close()
-            assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))   # armed, on its motors
-        finally:
-            gcs.close()
+    with _shared_link(tmp_path) as (hub, gcs):
+        with _run(hub, mission) as run:
+            run.wait_for("armed in MANUAL")
+            time.sleep(1.0)
+            with _closing(_station(hub)) as intruder:
+                intruder.override = [1500] * 8
+                intruder.start_pump()
+                assert run.wait() == 3, run.output
+        assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))   # armed, on its motors
     assert "another station took over the RC input: station sysid 255 component 190" in run.output
     assert _handover_time(run.output) <= HANDOVER_LIMIT
 
 
 def test_passthrough_outputs_with_a_live_driver_are_not_touched(tmp_path):
     mission = short_mission(tmp_path)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with bridge, Hub(bridge.port) as hub:
-        gcs = checker(checker_port)
-        driver = _station(hub)
-        try:
-            for n in range(1, 9):
-                assert driver.set_param(f"SERVO{n}_FUNCTION", 50 + n).param_value == 50 + n
-            driver.override = [1520] * 8
-            driver.start_pump()
-            with _run(hub, mission) as run:
-                assert run.wait() == 1, run.output
-            assert servo_functions(gcs) == list(range(51, 59)) and not armed(gcs)
-        finally:
-            driver.close()
-            gcs.close()
+    with _shared_link(tmp_path) as (hub, gcs), _closing(_station(hub)) as driver:
+        for n in range(1, 9):
+            assert driver.set_param(f"SERVO{n}_FUNCTION", 50 + n).param_value == 50 + n
+        driver.override = [1520] * 8
+        driver.start_pump()
+        with _run(hub, mission) as run:
+            assert run.wait() == 1, run.output
+        assert servo_functions(gcs) == list(range(51, 59)) and not armed(gcs)
     assert "another station is driving it" in run.output and "Nothing was sent to it" in run.output
     assert "nothing had been changed on the vehicle" in run.output and "taken as abandoned" not in run.output
 
@@ -124,42 +125,28 @@ def _pilot(hub: Hub) -> Gcs:
 
 def test_a_run_coexists_with_a_pilot_station_whose_joystick_rests(tmp_path):
     mission = short_mission(tmp_path)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with bridge, Hub(bridge.port) as hub:
-        gcs = checker(checker_port)
-        pilot = _pilot(hub)
-        try:
-            with _run(hub, mission) as run:
-                assert run.wait() == 0, run.output
-            assert_left_safe(gcs)
-            assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
-        finally:
-            pilot.close()
-            gcs.close()
+    with _shared_link(tmp_path) as (hub, gcs), _closing(_pilot(hub)):
+        with _run(hub, mission) as run:
+            assert run.wait() == 0, run.output
+        assert_left_safe(gcs)
+        assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
     assert "took the GCS role for this run: speaking as sysid 254" in run.output
     assert "restored MAV_GCS_SYSID=255" in run.output and "completed" in run.output
 
 
 def test_the_pilot_moving_the_joystick_takes_the_vehicle_over(tmp_path):
     mission = short_mission(tmp_path, hold=60.0)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with bridge, Hub(bridge.port) as hub:
-        gcs = checker(checker_port)
-        pilot = _pilot(hub)
-        try:
-            with _run(hub, mission) as run:
-                run.wait_for("armed in MANUAL")
-                time.sleep(1.0)
-                pilot.joystick = (600, 0, 500, 0)                    # forward
-                assert run.wait() == 3, run.output
-            assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))
-            assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
-            deadline = time.monotonic() + WAIT
-            while (outputs := servo_outputs(gcs)) == [1500] * 8 and time.monotonic() < deadline:
-                time.sleep(0.1)
-            assert outputs != [1500] * 8            # ArduSub's mixer now follows the pilot's joystick
-        finally:
-            pilot.close()
-            gcs.close()
+    with _shared_link(tmp_path) as (hub, gcs), _closing(_pilot(hub)) as pilot:
+        with _run(hub, mission) as run:
+            run.wait_for("armed in MANUAL")
+            time.sleep(1.0)
+            pilot.joystick = (600, 0, 500, 0)                    # forward
+            assert run.wait() == 3, run.output
+        assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))
+        assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
+        deadline = time.monotonic() + WAIT
+        while (outputs := servo_outputs(gcs)) == [1500] * 8 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert outputs != [1500] * 8            # ArduSub's mixer now follows the pilot's joystick
     assert "pilot takeover: station sysid 255 component 190" in run.output
     assert _handover_time(run.output) <= HANDOVER_LIMIT
