@@ -104,6 +104,7 @@ class Rejections:
         self.count = 0
         self.first: Rejected | None = None
         self.vehicle_heartbeats = 0       # rejected HEARTBEATs of an autopilot
+        self.first_vehicle_heartbeat: Rejected | None = None
         self.on_first = on_first
         self._reader = mavlink.MAVLink(None)      # no key: reads a frame without checking it
 
@@ -121,6 +122,7 @@ class Rejections:
         self.count += 1
         if msg.get_type() == "HEARTBEAT" and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:
             self.vehicle_heartbeats += 1
+            self.first_vehicle_heartbeat = self.first_vehicle_heartbeat or rejected
         if self.first is None:
             self.first = rejected
             if self.on_first is not None:

@@ -147,8 +147,9 @@ class Session:
         self._unsigned_since = self._unsigned_since or now
         if r.vehicle_heartbeats >= VEHICLE_HEARTBEATS and now - self._unsigned_since >= UNSIGNED_GRACE:
             raise LinkError(f"refusing {self.target}: {r.vehicle_heartbeats} HEARTBEATs of a vehicle were not signed "
-                            f"with our key (the first: {r.first.describe()}): set the key on the vehicle (MAVProxy: "
-                            "`signing setup PASSPHRASE`), or run without --signing-key/--signing-passphrase")
+                            f"with our key (the first: {r.first_vehicle_heartbeat.describe()}): set the key on the "
+                            "vehicle (MAVProxy: `signing setup PASSPHRASE`), or run without --signing-key/"
+                            "--signing-passphrase")
 
     def _identify(self, msg) -> VehicleId:
         if msg.type != mavlink.MAV_TYPE_SUBMARINE or msg.autopilot != mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA:
