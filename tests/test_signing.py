@@ -117,23 +117,27 @@ def test_a_frame_with_the_wrong_key_does_not_lock_the_genuine_stream_out():
 
 
 def _intrude(port: int, key: bytes | None, seconds: float) -> int:
-    """As the GCS sysid, on its own link: full-stick overrides, disarm, a parameter change and an order to turn
-    signing off, for `seconds`; with a key, each frame under every link id with a timestamp an hour ahead (to take
-    over the run's signing stream). Returns the frames sent."""
+    """As the GCS sysid, on its own link, at 20 Hz for `seconds`: full-stick overrides, disarm, a parameter change
+    and an order to turn signing off. With a key, first a HEARTBEAT under every link id with a timestamp an hour
+    ahead: one of them is the run's signing stream, which it would take over if a wrong signature still moved the
+    stream's timestamp. Returns the frames sent."""
     station = _station(port, key)
+    sent = 0
     if key is not None:
         station.conn.mav.signing.timestamp = timestamp(time.time()) + 3600 * TICKS_PER_SECOND
-    sent, end = 0, time.monotonic() + seconds
+        for link_id in range(256):
+            station.conn.mav.signing.link_id = link_id
+            station.heartbeat()
+            sent += 1
+    end = time.monotonic() + seconds
     try:
         while time.monotonic() < end:
-            for link_id in range(256) if key is not None else (0,):
-                station.conn.mav.signing.link_id = link_id
-                station.heartbeat()
-                station.rc_override([1900] * 8)
-                station.send("command_long", 1, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0)
-                station.send("param_set", 1, 1, b"FS_GCS_TIMEOUT", 9.0, 9)
-                station.send("setup_signing", 1, 1, [0] * 32, 0)
-                sent += 5
+            station.heartbeat()
+            station.rc_override([1900] * 8)
+            station.send("command_long", 1, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0)
+            station.send("param_set", 1, 1, b"FS_GCS_TIMEOUT", 9.0, 9)
+            station.send("setup_signing", 1, 1, [0] * 32, 0)
+            sent += 5
             time.sleep(0.05)
     finally:
         station.close()
@@ -158,8 +162,8 @@ def test_a_signed_run_flies_while_stations_with_the_wrong_key_or_none_are_ignore
         finally:
             gcs.close()
     assert "completed" in run.output and "handed over" not in run.output, run.output
-    dropped = re.search(r"frames dropped for their signature: (.*)", bridge.output)
-    assert dropped and f"link 2: {sent}" in dropped.group(1) and "link 1" not in dropped.group(1), bridge.output
+    dropped = re.search(r"frames dropped for their signature: link 2: (\d+)$", bridge.output, re.MULTILINE)
+    assert dropped and 0.5 * sent <= int(dropped.group(1)) <= sent, (sent, bridge.output)   # UDP may lose some
     assert "signing turned off" not in bridge.output
 
 
