@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -57,7 +58,7 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
 
 def add_signing_options(parser: argparse.ArgumentParser, effect: str) -> None:
     """--signing-key FILE | --signing-passphrase TEXT; `effect` says what a key does for this command."""
-    group = parser.add_argument_group("MAVLink 2 signing", effect)
+    group = parser.add_argument_group("MAVLink 2 signing", textwrap.fill(effect, 96))
     key = group.add_mutually_exclusive_group()
     key.add_argument("--signing-key", metavar="FILE", help="the key: a file of exactly 32 raw bytes")
     key.add_argument("--signing-passphrase", metavar="TEXT",

@@ -50,6 +50,7 @@ examples:
   rov-mav sim-bridge &  rov-mav run --target udp:127.0.0.1:14550 missions/square.yaml
   rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
   rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
+  rov-mav run --target udp:0.0.0.0:14550 --signing-passphrase TEXT missions/square.yaml   # a vehicle that signs
 
 exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2 bad arguments or files;
 3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).

@@ -37,6 +37,7 @@ examples:
   rov-mav sim-bridge                                  # sends to a ground station on udp 14550
   rov-mav sim-bridge --out udpout:127.0.0.1:14550 --listen tcpin:0.0.0.0:5760
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
+  rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
 
 Stop with Ctrl-C or SIGTERM; the achieved speedup and the loop's timing are printed on exit.
 """
