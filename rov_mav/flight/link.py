@@ -20,7 +20,7 @@ from pymavlink import mavutil  # noqa: E402
 
 from rov_mav.flight.stations import OverrideEcho, StationWatch  # noqa: E402
 from rov_mav.flight.vehicle_clock import VehicleClock  # noqa: E402
-from rov_mav.signing import VEHICLE_HEARTBEATS, UNSIGNED_RADIO, Rejections, advance, check_signature_first  # noqa: E402
+from rov_mav.signing import UNSIGNED_RADIO, VEHICLE_HEARTBEATS, Rejections, advance, check_signature_first  # noqa: E402
 
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
