@@ -27,3 +27,4 @@ class BridgeConfig:
     step: float = DEFAULT_STEP
     seed: int = 0
     params: dict[str, float] = field(default_factory=dict)
+    signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key

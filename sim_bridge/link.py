@@ -1,13 +1,18 @@
 """MAVLink 2 transports of the emulated vehicle: udpout (send to a ground station), udpin and tcpin (answer whoever
-writes). Non-blocking sockets, polled by the bridge's loop; one MAVLink encoder (sequence numbers) per link.
+writes). Non-blocking sockets, polled by the bridge's loop; one MAVLink encoder (sequence numbers) per link, and one
+signing state (`sim_bridge.signing`) that its encoder and parsers share; frames the signature check refused are
+counted in `rejections`.
 """
 
 from __future__ import annotations
 
 import errno
 import socket
+import time
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from rov_mav.signing import Rejections, advance, check_signature_first
 
 KINDS = ("udpout", "udpin", "tcpin")
 MAX_DATAGRAM = 65535
@@ -48,10 +53,12 @@ def _os_error(spec: str, exc: OSError) -> LinkError:
 class _Peer:
     """A byte stream's parser (and, for TCP, its socket and unsent bytes)."""
 
-    def __init__(self, sock: socket.socket | None = None):
+    def __init__(self, signing, sock: socket.socket | None = None):
         self.sock = sock
         self.parser = mavlink.MAVLink(None)
         self.parser.robust_parsing = True
+        self.parser.signing = signing
+        check_signature_first(self.parser)
         self.backlog = b""
 
 
@@ -64,6 +71,8 @@ class Link:
         self.kind, host, port = parse_endpoint(spec)
         self.address = _resolve(spec, host, port)
         self.encoder = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
+        self.signing = self.encoder.signing
+        self.rejections = Rejections()
         self.peers: list[_Peer] = []
         self.udp_peer: tuple[str, int] | None = self.address if self.kind == "udpout" else None
         try:
@@ -75,7 +84,7 @@ class Link:
             else:
                 self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
                 self.sock.bind(self.address if self.kind == "udpin" else ("0.0.0.0", 0))
-                self.peers.append(_Peer())
+                self.peers.append(_Peer(self.signing))
         except OSError as exc:
             self.sock.close()
             raise _os_error(spec, exc) from None
@@ -98,7 +107,7 @@ class Link:
                 continue
             if self.kind == "udpin":
                 self.udp_peer = sender
-            out += _parse(self.peers[0], data)
+            out += self._parse(self.peers[0], data)
 
     def _receive_tcp(self) -> list:
         while True:
@@ -108,7 +117,7 @@ class Link:
                 break
             client.setblocking(False)
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self.peers.append(_Peer(client))
+            self.peers.append(_Peer(self.signing, client))
         out = []
         for peer in list(self.peers):
             while True:
@@ -121,11 +130,26 @@ class Link:
                 if not data:
                     self._drop(peer)
                     break
-                out += _parse(peer, data)
+                out += self._parse(peer, data)
+        return out
+
+    def _parse(self, peer: _Peer, data: bytes) -> list:
+        try:
+            msgs = peer.parser.parse_buffer(data) or []
+        except mavlink.MAVError:
+            return []
+        out = []
+        for msg in msgs:
+            if msg.get_type() != "BAD_DATA":
+                out.append(msg)
+            else:
+                self.rejections.note(msg)
         return out
 
     def send(self, msg) -> None:
-        """Encode `msg` with this link's sequence numbers and write it to every peer."""
+        """Encode `msg` with this link's sequence numbers (signed, when signing is on) and write it to every peer."""
+        if self.signing.sign_outgoing:
+            advance(self.signing, time.time())
         self.encoder.send(msg)
 
     def write(self, buf: bytes) -> None:
@@ -164,14 +188,6 @@ class Link:
                 peer.sock.close()
         self.peers.clear()
         self.sock.close()
-
-
-def _parse(peer: _Peer, data: bytes) -> list:
-    try:
-        msgs = peer.parser.parse_buffer(data) or []
-    except mavlink.MAVError:
-        return []
-    return [m for m in msgs if m.get_type() != "BAD_DATA"]
 
 
 def open_links(specs: list[str], sysid: int) -> list[Link]:

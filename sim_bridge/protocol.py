@@ -22,6 +22,7 @@ from sim_bridge.ardusub import (
 )
 from sim_bridge.params import STREAM_GROUPS, Params
 from sim_bridge.schedule import Scheduler
+from sim_bridge.signing import ARMED_REFUSAL, VehicleSigning
 from sim_bridge.telemetry import ENCODER, Snapshot
 
 Reply = tuple[object, bool]
@@ -35,11 +36,12 @@ class Protocol:
     """Dispatches incoming messages to the vehicle, the parameters and the link's scheduler."""
 
     def __init__(self, vehicle: ArduSub, params: Params, snapshot: Callable[[], Snapshot],
-                 on_params_changed: Callable[[float], None]):
+                 on_params_changed: Callable[[float], None], signing: VehicleSigning | None = None):
         self.vehicle = vehicle
         self.params = params
         self.snapshot = snapshot
         self.on_params_changed = on_params_changed
+        self.signing = signing
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
         """Replies to one message received on link `channel` at sim time t."""
@@ -71,7 +73,18 @@ class Protocol:
             return [(ENCODER.timesync_encode(int(t * 1e9), msg.ts1), False)]
         elif kind == "FILE_TRANSFER_PROTOCOL":
             return [(self._ftp_refusal(msg), False)]
+        elif kind == "SETUP_SIGNING" and self.signing is not None:
+            self._setup_signing(msg, channel)
         return []
+
+    def _setup_signing(self, msg, channel: int) -> None:
+        """`GCS_MAVLINK::handle_setup_signing`: refused while armed (a STATUSTEXT says so), else the key and its
+        initial timestamp stored and applied on every link; no reply."""
+        if self.vehicle.armed:
+            self.vehicle.texts.append((mavlink.MAV_SEVERITY_ERROR, ARMED_REFUSAL))
+            return
+        self.signing.setup(bytes(msg.secret_key), msg.initial_timestamp,
+                           f"{msg.get_srcSystem()}/{msg.get_srcComponent()} on link {channel}")
 
     # -- commands --------------------------------------------------------------------------------------------
 

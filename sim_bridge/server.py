@@ -29,6 +29,7 @@ from sim_bridge.params import Params
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.schedule import Scheduler
+from sim_bridge.signing import VehicleSigning
 
 MAX_IDLE = 0.05                                   # s: longest sleep between checks for a stop request
 
@@ -55,7 +56,8 @@ class Bridge:
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
         self.physics = Physics(self.vehicle, plant, battery, load_t200(), config.step)
-        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed)
+        self.signing = VehicleSigning(config.signing_key, time.time())
+        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.signing)
         self.links: list[Link] = []
         self.schedulers: list[Scheduler] = []
         self.steps = 0
@@ -76,6 +78,12 @@ class Bridge:
     def open(self) -> None:
         """Open every link (LinkError, one line, if one cannot be opened)."""
         self.links = open_links(list(self.config.endpoints), self.sub.sysid)
+        self.signing.attach(self.links)
+        self.signing.on_change = lambda text: print(f"sim-bridge: {text}", flush=True)
+        for link in self.links:
+            link.rejections.on_first = lambda rejected, link=link: print(
+                f"sim-bridge: link {link.channel} ({link.spec}): ignoring MAVLink not signed with the key (the "
+                f"first: {rejected.describe()}); counted, not reported again", file=sys.stderr, flush=True)
         names = tuple(telemetry.BUILDERS)
         self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
                            for link in self.links]

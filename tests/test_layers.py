@@ -20,7 +20,7 @@ MAY_IMPORT = {
     "rov_mav.telemetry": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline",
                           "rov_mav.flight"},
 }
-FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units"}
+FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing"}
 # Libraries that belong to the shell: none of them may be imported below it.
 SHELL_LIBRARIES = {"pymavlink", "rerun", "socket", "argparse", "select", "threading"}
 CORE = ("rov_mav.model", "rov_mav.control", "rov_mav.mission")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,6 +54,27 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--fuzzy-rules", metavar="FILE", help="fuzzy rule base YAML (default: Appendix III)")
     group.add_argument("--vehicle", metavar="FILE",
                        help="the controller's vehicle model YAML (default: the shipped BlueROV2 Heavy)")
+
+
+def add_signing_options(parser: argparse.ArgumentParser, effect: str) -> None:
+    """--signing-key FILE | --signing-passphrase TEXT; `effect` says what a key does for this command."""
+    group = parser.add_argument_group("MAVLink 2 signing", textwrap.fill(effect, 96))
+    key = group.add_mutually_exclusive_group()
+    key.add_argument("--signing-key", metavar="FILE", help="the key: a file of exactly 32 raw bytes")
+    key.add_argument("--signing-passphrase", metavar="TEXT",
+                     help="the key: SHA-256 of this ASCII passphrase, as MAVProxy's `signing setup TEXT` and "
+                          "`signing key TEXT` derive it")
+
+
+def signing_key(args: argparse.Namespace) -> bytes | None:
+    """The key the signing options give (ConfigError, one line, if the file or passphrase is unusable), or None."""
+    from rov_mav.signing import key_from_file, key_from_passphrase
+
+    if args.signing_key is not None:
+        return key_from_file(args.signing_key)
+    if args.signing_passphrase is not None:
+        return key_from_passphrase(args.signing_passphrase)
+    return None
 
 
 def controller_settings(args: argparse.Namespace) -> ControllerSettings:

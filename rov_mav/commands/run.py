@@ -11,9 +11,11 @@ from pathlib import Path
 from rov_mav.commands.common import (
     add_controller_options,
     add_rerun_option,
+    add_signing_options,
     controller_settings,
     positive_float,
     rerun_sink,
+    signing_key,
 )
 
 DESCRIPTION = """\
@@ -48,6 +50,7 @@ examples:
   rov-mav sim-bridge &  rov-mav run --target udp:127.0.0.1:14550 missions/square.yaml
   rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
   rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
+  rov-mav run --target udp:0.0.0.0:14550 --signing-passphrase TEXT missions/square.yaml   # a vehicle that signs
 
 exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2 bad arguments or files;
 3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
@@ -98,6 +101,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
     p.add_argument("--speedup", type=positive_float, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
+    add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
+                           "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
+                           "the key is refused. The built-in vehicle gets the same key.")
     add_rerun_option(p)
     p.set_defaults(func=main)
 
@@ -108,7 +114,7 @@ def _free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-def _start_bridge(mission, speedup: float):
+def _start_bridge(mission, speedup: float, key: bytes | None):
     """The built-in vehicle in a background thread; returns (bridge, connection string for it)."""
     from rov_mav.flight.link import LinkError
     from sim_bridge.config import BridgeConfig
@@ -117,7 +123,8 @@ def _start_bridge(mission, speedup: float):
 
     port = _free_udp_port()
     bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
-                                 environment=mission.environment, start_depth=float(mission.start_pose[2])))
+                                 environment=mission.environment, start_depth=float(mission.start_pose[2]),
+                                 signing_key=key))
     try:
         bridge.start()
     except BridgeLinkError as exc:
@@ -140,6 +147,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.model.vehicle import load_vehicle
 
     mission = load_mission(args.mission)
+    key = signing_key(args)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     if args.target is not None and args.speedup != 1.0:
@@ -156,8 +164,9 @@ def main(args: argparse.Namespace) -> int:
     sinks: list = [StatusLine()]
     try:
         if target is None:
-            bridge, target = _start_bridge(mission, args.speedup)
-        session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup)
+            bridge, target = _start_bridge(mission, args.speedup, key)
+        session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
+                               signing_key=key)
     except LinkError as exc:
         if bridge is not None:
             bridge.stop()

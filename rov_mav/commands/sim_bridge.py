@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from rov_mav.commands.common import positive_float
+from rov_mav.commands.common import add_signing_options, positive_float, signing_key
 from rov_mav.model.environment import load_environment
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
 from sim_bridge.link import LinkError, parse_endpoint
@@ -37,6 +37,7 @@ examples:
   rov-mav sim-bridge                                  # sends to a ground station on udp 14550
   rov-mav sim-bridge --out udpout:127.0.0.1:14550 --listen tcpin:0.0.0.0:5760
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
+  rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
 
 Stop with Ctrl-C or SIGTERM; the achieved speedup and the loop's timing are printed on exit.
 """
@@ -100,6 +101,12 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
+    add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
+                           "drops frames not signed with the key, except RADIO_STATUS/RADIO and except on the first "
+                           "link (the first --out, else the first --listen: ArduPilot's channel 0, USB, taken as "
+                           "secure). Without a key, a ground station can "
+                           "set one with SETUP_SIGNING (MAVProxy: `signing setup PASSPHRASE`), refused while armed; "
+                           "an all-zero key turns signing off.")
     p.set_defaults(func=run)
 
 
@@ -108,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     environment = load_environment(args.environment) if args.environment else None
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
-                          step=args.step, seed=args.seed, params=dict(args.param))
+                          step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args))
     from sim_bridge.server import (
         Bridge,  # the physics stack loads only when a bridge runs
     )
@@ -124,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
         return 1
     print(f"sim-bridge: ArduSub {args.firmware} ({bridge.vehicle.name}) on {', '.join(endpoints)}, "
-          f"speedup {args.speedup:g}", flush=True)
+          f"speedup {args.speedup:g}{', MAVLink 2 signing on' if bridge.signing.enabled else ''}", flush=True)
     previous = {sig: signal.signal(sig, lambda *_: bridge.request_stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         bridge.run()
@@ -135,4 +142,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"sim-bridge: stopped at t={s['sim_time']:.2f} s after {s['wall_time']:.2f} s wall "
           f"(speedup {s['speedup']:.3f}, {s['slips']} slips); step lateness ms: mean {s['late_mean_ms']:.3f} "
           f"p50 {s['late_p50_ms']:.3f} p99 {s['late_p99_ms']:.3f} max {s['late_max_ms']:.3f}", flush=True)
+    if rejected := {link.channel: link.rejections.count for link in bridge.links if link.rejections.count}:
+        print("sim-bridge: frames dropped for their signature: "
+              + ", ".join(f"link {channel}: {n}" for channel, n in rejected.items()), flush=True)
     return 0

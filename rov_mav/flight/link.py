@@ -9,6 +9,7 @@ keep flowing) and gives up after a wall-clock timeout.
 from __future__ import annotations
 
 import os
+import secrets
 import socket
 import time
 from collections.abc import Callable
@@ -19,6 +20,7 @@ from pymavlink import mavutil  # noqa: E402
 
 from rov_mav.flight.stations import OverrideEcho, StationWatch  # noqa: E402
 from rov_mav.flight.vehicle_clock import VehicleClock  # noqa: E402
+from rov_mav.signing import UNSIGNED_RADIO, VEHICLE_HEARTBEATS, Rejections, advance, check_signature_first  # noqa: E402
 
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
@@ -33,6 +35,7 @@ ATTEMPTS = 3
 REPLY_TIMEOUT = 1.5             # wall s per attempt
 RECEIVE_BUFFER = 1 << 20         # bytes
 GCS_SYSID_PARAMS = ("MAV_GCS_SYSID", "SYSID_MYGCS")   # ArduSub 4.7+, before 4.7
+UNSIGNED_GRACE = 2.0            # wall s of rejected vehicle HEARTBEATs (4 signed hellos sent) before refusing
 
 
 class LinkError(Exception):
@@ -75,6 +78,8 @@ class Session:
         self.echo = OverrideEcho()            # the overrides sent recently, to recognise them in RC_CHANNELS
         self.taps: list[Callable[[object, bool], None]] = []   # (msg, outgoing) for every message in and out
         self.heartbeats = False
+        self.rejections: Rejections | None = None   # with a signing key: what the signature check refused
+        self._unsigned_since: float | None = None   # wall s of the first rejected vehicle HEARTBEAT
         self._next_heartbeat = 0.0
         self._last_override_t = -1e9
         self._wall_last_heartbeat = -1e9
@@ -82,8 +87,10 @@ class Session:
         conn.mav.set_send_callback(self._outgoing)
 
     @classmethod
-    def open(cls, target: str, sysid: int = 255, baud: int = 115200, rate_hint: float = 1.0) -> "Session":
-        """Open a pymavlink connection string (udp:/udpin:/udpout:/tcp:/serial device); LinkError if it cannot."""
+    def open(cls, target: str, sysid: int = 255, baud: int = 115200, rate_hint: float = 1.0,
+             signing_key: bytes | None = None) -> "Session":
+        """Open a pymavlink connection string (udp:/udpin:/udpout:/tcp:/serial device); LinkError if it cannot.
+        With `signing_key`, see `sign()`."""
         try:
             conn = mavutil.mavlink_connection(target, baud=baud, source_system=sysid,
                                               source_component=mavlink.MAV_COMP_ID_MISSIONPLANNER,
@@ -93,7 +100,19 @@ class Session:
         sock = getattr(conn, "port", None)
         if hasattr(sock, "setsockopt"):             # UDP: room for a burst of telemetry at high speedups
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
-        return cls(conn, VehicleClock(rate_hint), target)
+        session = cls(conn, VehicleClock(rate_hint), target)
+        if signing_key is not None:
+            session.sign(signing_key)
+        return session
+
+    def sign(self, key: bytes) -> None:
+        """MAVLink 2 signing with pymavlink: sign all we send (a random link id, so that another process signing
+        as our sysid is another stream), and drop every frame not signed with `key` but a radio's RADIO_STATUS,
+        counting them in `rejections`."""
+        self.conn.setup_signing(key, sign_outgoing=True, link_id=secrets.randbelow(256),
+                                allow_unsigned_callback=lambda _mav, msg_id: msg_id in UNSIGNED_RADIO)
+        check_signature_first(self.conn.mav)
+        self.rejections = Rejections()
 
     def close(self) -> None:
         self.conn.close()
@@ -113,9 +132,24 @@ class Session:
                 if msg.get_type() == "HEARTBEAT" and self.conn.probably_vehicle_heartbeat(msg) \
                         and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:   # not a camera, companion, GCS
                     return self._identify(msg)
+            self._check_unsigned_vehicle()
             self._check_interrupt()
         raise LinkError(f"no HEARTBEAT from a vehicle on {self.target} within {timeout:g} s: is the vehicle (or "
                         f"`rov-mav sim-bridge`) running and sending to this address?")
+
+    def _check_unsigned_vehicle(self) -> None:
+        """With a key: refuse once an autopilot's HEARTBEATs keep failing the signature check. The first ones may
+        fail while a vehicle whose timestamp is far behind ours catches up from our signed hellos."""
+        r = self.rejections
+        if r is None or not r.vehicle_heartbeats:
+            return
+        now = time.monotonic()
+        self._unsigned_since = self._unsigned_since or now
+        if r.vehicle_heartbeats >= VEHICLE_HEARTBEATS and now - self._unsigned_since >= UNSIGNED_GRACE:
+            raise LinkError(f"refusing {self.target}: {r.vehicle_heartbeats} HEARTBEATs of a vehicle were not signed "
+                            f"with our key (the first: {r.first_vehicle_heartbeat.describe()}): set the key on the "
+                            "vehicle (MAVProxy: `signing setup PASSPHRASE`), or run without --signing-key/"
+                            "--signing-passphrase")
 
     def _identify(self, msg) -> VehicleId:
         if msg.type != mavlink.MAV_TYPE_SUBMARINE or msg.autopilot != mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA:
@@ -276,6 +310,8 @@ class Session:
     def service(self) -> None:
         """Send the GCS heartbeat and the held override if they are due in vehicle time."""
         now = self.clock.now()
+        if self.rejections is not None:
+            advance(self.conn.mav.signing, time.time())
         if self.heartbeats and (now >= self._next_heartbeat
                                 or time.perf_counter() - self._wall_last_heartbeat >= HEARTBEAT_PERIOD):
             self._send_heartbeat()
@@ -318,6 +354,8 @@ class Session:
     def _incoming(self, _conn, msg) -> None:
         kind = msg.get_type()
         if kind == "BAD_DATA":
+            if self.rejections is not None:
+                self.rejections.note(msg)
             return
         for tap in self.taps:
             tap(msg, False)

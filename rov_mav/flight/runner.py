@@ -165,6 +165,10 @@ class Runner:
         self._ticks: deque[float] = deque()
         self._log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
         self._loop = History(tick_time=1, latency_ms=1)
+        if session.rejections is not None:
+            session.rejections.on_first = lambda r: self.say(
+                f"ignoring MAVLink not signed with our key (the first: {r.describe()}); counted, reported at the end",
+                "warning")
 
     # -- top level -------------------------------------------------------------------------------------------
 
@@ -616,6 +620,8 @@ class Runner:
         """Neutral, release, disarm, restore; returns what was done, one line each."""
         s = self.session
         report = [f"stopping: {reason}"]
+        if s.rejections is not None and s.rejections.count:
+            report.append(s.rejections.summary())
         if self.stale_episodes:
             report.append(f"watchdog: telemetry went stale {self.stale_episodes} time(s) (older than "
                           f"{self.options.stale_periods:g} control periods); neutral was sent each time")
