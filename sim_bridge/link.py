@@ -7,6 +7,7 @@ counted in `rejections`.
 from __future__ import annotations
 
 import errno
+import re
 import socket
 import time
 
@@ -17,6 +18,7 @@ from rov_mav.signing import Rejections, advance, check_signature_first
 KINDS = ("udpout", "udpin", "tcpin")
 MAX_DATAGRAM = 65535
 MAX_TCP_BACKLOG = 1 << 20        # bytes queued for a slow TCP client before it is dropped
+HOST = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_.-]{0,252}[A-Za-z0-9_])?")   # a host name or an IPv4 address
 
 
 class LinkError(Exception):
@@ -24,10 +26,13 @@ class LinkError(Exception):
 
 
 def parse_endpoint(spec: str, kinds: tuple[str, ...] = KINDS) -> tuple[str, str, int]:
-    """'KIND:HOST:PORT' -> (kind, host, port); LinkError if malformed."""
+    """'KIND:HOST:PORT' -> (kind, host, port); LinkError if malformed (IPv6 is not spoken: IPv4 sockets)."""
     parts = spec.rsplit(":", 2)
     if len(parts) != 3 or parts[0] not in kinds or not parts[1]:
-        raise LinkError(f"{spec}: expected {' or '.join(k + ':HOST:PORT' for k in kinds)}")
+        wanted = " or ".join(k + ":HOST:PORT" for k in kinds) if len(kinds) < 3 else "/".join(kinds) + ":HOST:PORT"
+        raise LinkError(f"{spec}: expected {wanted}")
+    if not HOST.fullmatch(parts[1]):
+        raise LinkError(f"{spec}: '{parts[1]}' is not a host name or IPv4 address")
     try:
         port = int(parts[2])
     except ValueError:

@@ -8,6 +8,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rov_mav.commands.arguments import require_writable, six_floats, unwritable
 from rov_mav.control.controller import SCHEDULES, ControllerSettings, load_settings
 
 if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
@@ -17,28 +18,6 @@ if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording 
     from rov_mav import telemetry
     from rov_mav.mission.missions import Mission
     from rov_mav.model.vehicle import Vehicle
-
-
-def positive_float(text: str) -> float:
-    """Parse a number > 0 (argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text}: expected a positive number")
-    return value
-
-
-def six_floats(text: str) -> list[float]:
-    """Parse 'a,b,c,d,e,f' into six floats (argparse type)."""
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not six comma-separated numbers") from None
-    if len(values) != 6:
-        raise argparse.ArgumentTypeError(f"'{text}' has {len(values)} values, expected 6")
-    return values
 
 
 def add_controller_options(parser: argparse.ArgumentParser) -> None:
@@ -85,9 +64,20 @@ def _rerun_target(text: str) -> telemetry.RerunTarget:
     from rov_mav import telemetry
 
     try:
-        return telemetry.parse_target(text)
+        target = telemetry.parse_target(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    problem = unwritable(Path(target.location), folder=False) if target.mode == "save" else None
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{target.location}: {problem}")
+    return target
+
+
+def check_rerun_output(args: argparse.Namespace, default_file: str | Path) -> None:
+    """ConfigError now, before any work, if the recording would go to `default_file` and that cannot be written
+    (the default without a display, or the fallback when no viewer answers)."""
+    if args.rerun is None or args.rerun.mode in ("spawn", "connect"):
+        require_writable(default_file, folder=False, option="--rerun (default save)")
 
 
 def add_rerun_option(parser: argparse.ArgumentParser) -> None:

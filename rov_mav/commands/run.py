@@ -8,15 +8,31 @@ import socket
 import sys
 from pathlib import Path
 
+from rov_mav.commands.arguments import (
+    count,
+    mavlink_target,
+    number,
+    output_file,
+    output_folder,
+    positive_float,
+    seconds,
+    speedup,
+    sysid,
+)
 from rov_mav.commands.common import (
     add_controller_options,
     add_rerun_option,
     add_signing_options,
+    check_rerun_output,
     controller_settings,
-    positive_float,
     rerun_sink,
     signing_key,
 )
+from rov_mav.mission.missions import MAX_SPEED
+
+MAX_RATE = 400.0              # Hz: ArduSub's main loop; no telemetry comes faster
+MAX_LINK_TIMEOUT = 60.0       # vehicle s: flying blind longer than this is not a setting
+MAX_BAUD = 10_000_000
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -61,13 +77,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)",
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("mission", help="mission YAML (e.g. missions/square.yaml)")
-    p.add_argument("--target", metavar="CONN",
+    p.add_argument("--target", type=mavlink_target, metavar="CONN",
                    help="pymavlink connection: udp:HOST:PORT (listen; a vehicle sends to 14550), udpout:HOST:PORT, "
                         "tcp:HOST:PORT (ArduSub SITL: tcp:127.0.0.1:5760), or a serial device (see --baud); "
                         "default: start the built-in simulated vehicle in this process")
     add_controller_options(p)
-    p.add_argument("--rate", type=positive_float, default=50.0, metavar="HZ",
-                   help="control rate in Hz of vehicle time: telemetry asked for and overrides sent (default 50)")
+    p.add_argument("--rate", type=number(1.0, MAX_RATE), default=50.0, metavar="HZ",
+                   help="control rate in Hz of vehicle time, 1 to 400: telemetry asked for and overrides sent "
+                        "(default 50)")
     p.add_argument("--output", choices=["thrusters"], default="thrusters",
                    help="how commands reach the vehicle: per-thruster PWMs through RCIN passthrough (default)")
     p.add_argument("--dry-run", action="store_true",
@@ -75,8 +92,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "override; limit crossings are reported, not acted on")
     p.add_argument("--force", action="store_true",
                    help="take over a vehicle that is already armed or that another station is driving")
-    p.add_argument("--metrics", metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
-    p.add_argument("--log", metavar="DIR",
+    p.add_argument("--metrics", type=output_file, metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
+    p.add_argument("--log", type=output_folder, metavar="DIR",
                    help="write ticks.csv (state, reference, commands, controller internals), events.csv and the "
                         "raw MAVLink traffic (mavlink.tlog) to DIR")
     limits = p.add_argument_group("limits (default: the mission's `limits:` block)")
@@ -86,20 +103,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     limits.add_argument("--max-thrust", type=positive_float, metavar="N",
                         help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
     link = p.add_argument_group("link")
-    link.add_argument("--sysid", type=int, metavar="ID",
-                      help="our MAVLink system id (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255; "
+    link.add_argument("--sysid", type=sysid, metavar="ID",
+                      help="our MAVLink system id, 1 to 255 (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255; "
                            "another one, or a pilot's joystick on that sysid, makes the run take the GCS role with "
                            "its own sysid for the run)")
-    link.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
-    link.add_argument("--heartbeat-timeout", type=positive_float, default=15.0, metavar="S",
+    link.add_argument("--baud", type=count(MAX_BAUD), default=115200, help="serial baud rate (default 115200)")
+    link.add_argument("--heartbeat-timeout", type=seconds, default=15.0, metavar="S",
                       help="wall seconds to wait for the vehicle's heartbeat (default 15)")
-    link.add_argument("--position-timeout", type=positive_float, default=90.0, metavar="S",
+    link.add_argument("--position-timeout", type=seconds, default=90.0, metavar="S",
                       help="wall seconds to wait for LOCAL_POSITION_NED (default 90)")
-    link.add_argument("--link-timeout", type=positive_float, default=2.0, metavar="S",
+    link.add_argument("--link-timeout", type=number(0.0, MAX_LINK_TIMEOUT, low_open=True), default=2.0, metavar="S",
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
-    p.add_argument("--approach-speed", type=positive_float, default=0.2, metavar="M/S",
+    p.add_argument("--approach-speed", type=number(0.0, MAX_SPEED, low_open=True), default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
-    p.add_argument("--speedup", type=positive_float, default=1.0, metavar="N",
+    p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
                            "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
@@ -153,6 +170,8 @@ def main(args: argparse.Namespace) -> int:
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
+    default_recording = Path(f"out/run-{mission.name}/run.rrd")
+    check_rerun_output(args, default_recording)
     lim = mission.limits
     limits = Limits(max_depth=args.max_depth or lim.max_depth,
                     max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
@@ -176,7 +195,7 @@ def main(args: argparse.Namespace) -> int:
         run_log = RunLog(args.log)
         session.taps.append(run_log.log_mavlink)
         sinks.append(run_log)
-    rerun_target, rerun = rerun_sink(args, model, mission, Path(f"out/run-{mission.name}/run.rrd"))
+    rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
     if rerun is not None:
         sinks.append(rerun)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None

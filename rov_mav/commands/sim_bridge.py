@@ -6,10 +6,11 @@ import argparse
 import signal
 import sys
 
-from rov_mav.commands.common import add_signing_options, positive_float, signing_key
+from rov_mav.commands.arguments import endpoint, number, seed, speedup
+from rov_mav.commands.common import add_signing_options, signing_key
 from rov_mav.model.environment import load_environment
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
-from sim_bridge.link import LinkError, parse_endpoint
+from sim_bridge.link import LinkError
 from sim_bridge.params import DEFAULT_FIRMWARE, FIRMWARES
 
 DESCRIPTION = """\
@@ -43,14 +44,8 @@ Stop with Ctrl-C or SIGTERM; the achieved speedup and the loop's timing are prin
 """
 
 
-def _endpoint(kinds: tuple[str, ...]):
-    def parse(text: str) -> str:
-        try:
-            parse_endpoint(text, kinds)
-        except LinkError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-        return text
-    return parse
+MAX_START_DEPTH = 300.0            # m: a Bar30 depth sensor's range
+MIN_STEP, MAX_STEP = 1e-4, 0.01    # s: 10 kHz to 100 Hz (ArduSub runs at 400 Hz)
 
 
 def _origin(text: str) -> tuple[float, float, float]:
@@ -60,29 +55,36 @@ def _origin(text: str) -> tuple[float, float, float]:
         values = []
     if len(values) not in (2, 3):
         raise argparse.ArgumentTypeError(f"{text}: expected LAT,LON or LAT,LON,ALT")
-    return (values[0], values[1], values[2] if len(values) == 3 else 0.0)
+    lat, lon, alt = values[0], values[1], values[2] if len(values) == 3 else 0.0
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180 and abs(alt) <= 10_000):
+        raise argparse.ArgumentTypeError(f"{text}: need -90 <= LAT <= 90, -180 <= LON <= 180, |ALT| <= 10000 m")
+    return lat, lon, alt
 
 
 def _param(text: str) -> tuple[str, float]:
+    """NAME=VALUE; whether NAME exists and VALUE fits a float32 parameter is the bridge's to say."""
     name, _, value = text.partition("=")
     try:
-        return name.strip().upper(), float(value)
+        number = float(value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text}: expected NAME=VALUE") from None
+        number = None
+    if number is None or not name.strip():
+        raise argparse.ArgumentTypeError(f"{text}: expected NAME=VALUE")
+    return name.strip().upper(), number
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("sim-bridge", help="run a simulated ArduSub BlueROV2 Heavy over MAVLink",
                               description=DESCRIPTION, epilog=EPILOG,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", action="append", default=[], type=_endpoint(("udpout",)), metavar="udpout:HOST:PORT",
+    p.add_argument("--out", action="append", default=[], type=endpoint(("udpout",)), metavar="udpout:HOST:PORT",
                    help=f"send to a ground station at HOST:PORT, as a vehicle does (repeatable; default "
                         f"{DEFAULT_OUT} when no --out or --listen is given)")
-    p.add_argument("--listen", action="append", default=[], type=_endpoint(("udpin", "tcpin")),
+    p.add_argument("--listen", action="append", default=[], type=endpoint(("udpin", "tcpin")),
                    metavar="udpin|tcpin:HOST:PORT",
                    help="wait on HOST:PORT and answer whoever writes (udpin: the last sender; tcpin: every "
                         "connected client); repeatable, several links at once")
-    p.add_argument("--speedup", type=positive_float, default=1.0, metavar="N",
+    p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="simulated time runs N times faster than the wall clock (default 1: real time)")
     p.add_argument("--environment", metavar="FILE",
                    help="disturbance, current and sensor noise: a mission file's environment: block, or a file "
@@ -94,11 +96,11 @@ def register(subparsers) -> None:
     p.add_argument("--origin", type=_origin, default=DEFAULT_ORIGIN, metavar="LAT,LON[,ALT]",
                    help="where local position (0, 0, 0) is on the globe, surface altitude in m "
                         "(default %s,%s,%s)" % DEFAULT_ORIGIN)
-    p.add_argument("--start-depth", type=float, default=0.0, metavar="M",
+    p.add_argument("--start-depth", type=number(0.0, MAX_START_DEPTH), default=0.0, metavar="M",
                    help="depth in m at boot (default 0: at the surface; the model has no free surface)")
-    p.add_argument("--step", type=positive_float, default=DEFAULT_STEP, metavar="S",
+    p.add_argument("--step", type=number(MIN_STEP, MAX_STEP), default=DEFAULT_STEP, metavar="S",
                    help="fixed physics and main-loop step in simulated seconds (default %(default)s: 400 Hz)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
     add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
+from rov_mav.commands.arguments import number, output_file, output_folder, require_writable, seed
 from rov_mav.commands.common import (
     add_controller_options,
     add_rerun_option,
+    check_rerun_output,
     controller_settings,
-    positive_float,
     rerun_recording,
 )
-from rov_mav.config import ConfigError
+from rov_mav.mission.missions import MAX_DURATION
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,10 +27,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plant-params", metavar="FILE",
                    help="vehicle YAML for the simulated plant when it differs from the controller's model "
                         "(mismatch studies); default: the controller's model")
-    p.add_argument("--duration", type=positive_float, metavar="S", help="simulated seconds (default: the mission's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
-    p.add_argument("--out", metavar="DIR", help="folder for the figures (default: out/simulate-MISSION-CONTROLLER)")
-    p.add_argument("--metrics", metavar="FILE", help="write the metrics JSON here (default: DIR/metrics.json)")
+    p.add_argument("--duration", type=number(0.0, MAX_DURATION, low_open=True), metavar="S",
+                   help=f"simulated seconds, at most {MAX_DURATION:g} (default: the mission's)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--out", type=output_folder, metavar="DIR",
+                   help="folder for the figures (default: out/simulate-MISSION-CONTROLLER)")
+    p.add_argument("--metrics", type=output_file, metavar="FILE",
+                   help="write the metrics JSON here (default: DIR/metrics.json)")
     add_rerun_option(p)
     p.set_defaults(func=main)
 
@@ -48,12 +51,9 @@ def main(args: argparse.Namespace) -> int:
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model
-    out_dir = Path(args.out or f"out/simulate-{mission.name}-{settings.kind}")
-    metrics_path = Path(args.metrics) if args.metrics else out_dir / "metrics.json"
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
-    if metrics_path.is_dir():
-        raise ConfigError(f"--metrics {metrics_path}: is a folder, expected a file name")
+    out_dir = require_writable(args.out or f"out/simulate-{mission.name}-{settings.kind}", folder=True, option="--out")
+    metrics_path = require_writable(args.metrics or out_dir / "metrics.json", folder=False, option="--metrics")
+    check_rerun_output(args, out_dir / "run.rrd")
     trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed)
     metrics = trace_metrics(mission.name, settings.kind, trace)
     figures = plot_run(trace, f"{mission.name} / {settings.kind}", out_dir)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -13,56 +14,46 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from rov_mav.commands.arguments import (
+    cluster_address,
+    count,
+    number,
+    output_file,
+    output_folder,
+    require_writable,
+    seed,
+)
 from rov_mav.commands.common import (
     add_controller_options,
     add_rerun_option,
+    check_rerun_output,
     controller_settings,
-    positive_float,
     rerun_recording,
 )
 from rov_mav.control.controller import ControllerSettings
 from rov_mav.mission.metrics import trace_metrics
-from rov_mav.mission.missions import Mission, load_mission
+from rov_mav.mission.missions import MAX_DURATION, Mission, load_mission
 from rov_mav.model.vehicle import Vehicle, load_vehicle
 from rov_mav.offline import loop_kernel, pso, tuning
 from rov_mav.offline.scenarios import load_scenarios, nominal
 from rov_mav.offline.simulation import Trace, simulate
 
 DEFAULT_BOUNDS = (0.1, 10.0)   # ERRATA: the report's optimum spans 0.8-10
+MAX_PARTICLES = 10_000         # the swarm's arrays and each iteration's batch of runs stay in memory
+MAX_ITERATIONS = 100_000
+MAX_THREADS = 256
+coefficient = number(-10.0, 10.0)   # w, c1, c2: the usual values are 0.4-0.9 and 1.5-2
 
 
 def bounds_pair(text: str) -> tuple[float, float]:
-    """Parse 'LO,HI' with 0 < LO < HI (argparse type)."""
+    """Parse 'LO,HI' with 0 < LO < HI, both finite (argparse type)."""
     try:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not LO,HI") from None
-    if not 0 < lo < hi:
-        raise argparse.ArgumentTypeError(f"'{text}': need 0 < LO < HI (Eq. 2.33: k1, k2 > 0)")
+    if not 0 < lo < hi < math.inf:
+        raise argparse.ArgumentTypeError(f"'{text}': need 0 < LO < HI, both finite (Eq. 2.33: k1, k2 > 0)")
     return lo, hi
-
-
-def positive_int(text: str) -> int:
-    """Parse an integer >= 1 (argparse type)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"'{text}': need at least 1")
-    return value
-
-
-def cluster_address(text: str) -> str:
-    """Parse 'local:N' (N >= 1) or 'tcp://HOST:PORT' (argparse type)."""
-    if text.startswith("local:"):
-        count = text.removeprefix("local:")
-        if count.isdigit() and int(count) >= 1:
-            return text
-        raise argparse.ArgumentTypeError(f"'{text}': local:N needs a number of workers N >= 1")
-    if text.startswith("tcp://") and text.rpartition(":")[2].isdigit():
-        return text
-    raise argparse.ArgumentTypeError(f"'{text}' is neither local:N nor tcp://HOST:PORT")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -76,14 +67,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("mission", help="mission YAML (e.g. missions/line.yaml, the report's tuning run)")
     add_controller_options(p)
     g = p.add_argument_group("swarm")
-    g.add_argument("--particles", type=positive_int, default=defaults.particles, help="swarm size (default 100)")
-    g.add_argument("--iterations", type=positive_int, default=defaults.iterations,
+    g.add_argument("--particles", type=count(MAX_PARTICLES), default=defaults.particles,
+                   help="swarm size (default 100)")
+    g.add_argument("--iterations", type=count(MAX_ITERATIONS), default=defaults.iterations,
                    help="iterations; each evaluates the whole swarm (default 100)")
-    g.add_argument("--seed", type=int, default=0, help="seed of the swarm's random numbers (default 0)")
-    g.add_argument("--w", type=float, default=defaults.w, help=f"inertia, Eq. 2.30 (default {defaults.w})")
-    g.add_argument("--c1", type=float, default=defaults.c1, help=f"cognitive coefficient (default {defaults.c1})")
-    g.add_argument("--c2", type=float, default=defaults.c2, help=f"social coefficient (default {defaults.c2})")
-    g.add_argument("--velocity-clamp", type=float, default=defaults.velocity_clamp, metavar="F",
+    g.add_argument("--seed", type=seed, default=0, help="seed of the swarm's random numbers (default 0)")
+    g.add_argument("--w", type=coefficient, default=defaults.w, help=f"inertia, Eq. 2.30 (default {defaults.w})")
+    g.add_argument("--c1", type=coefficient, default=defaults.c1,
+                   help=f"cognitive coefficient (default {defaults.c1})")
+    g.add_argument("--c2", type=coefficient, default=defaults.c2, help=f"social coefficient (default {defaults.c2})")
+    g.add_argument("--velocity-clamp", type=number(0.0, 1.0, low_open=True), default=defaults.velocity_clamp,
+                   metavar="F",
                    help="max |velocity| per iteration as a fraction of the box width (default "
                         f"{defaults.velocity_clamp})")
     box = g.add_mutually_exclusive_group()
@@ -98,14 +92,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="score each particle over these scenarios (e.g. missions/scenarios/robust.yaml)")
     c.add_argument("--aggregate", choices=tuning.AGGREGATES, default="mean",
                    help="combine scenario costs by their mean (default) or the worst case")
-    c.add_argument("--duration", type=positive_float, metavar="S", help="simulated seconds (default: the mission's)")
+    c.add_argument("--duration", type=number(0.0, MAX_DURATION, low_open=True), metavar="S",
+                   help=f"simulated seconds, at most {MAX_DURATION:g} (default: the mission's)")
     r = p.add_argument_group("compute")
-    r.add_argument("--threads", type=positive_int, default=2, help="in-process threads (default 2)")
+    r.add_argument("--threads", type=count(MAX_THREADS), default=2, help="in-process threads (default 2)")
     r.add_argument("--cluster", type=cluster_address, metavar="ADDR",
                    help="evaluate on Dask: local:N (a LocalCluster of N processes) or tcp://HOST:PORT")
     o = p.add_argument_group("output")
-    o.add_argument("--out", metavar="FILE", help="gains YAML to write (default out/tune-MISSION/gains.yaml)")
-    o.add_argument("--plot", metavar="DIR",
+    o.add_argument("--out", type=output_file, metavar="FILE",
+                   help="gains YAML to write (default out/tune-MISSION/gains.yaml)")
+    o.add_argument("--plot", type=output_folder, metavar="DIR",
                    help="folder for convergence.png and comparison.json (default: the folder of --out)")
     add_rerun_option(p)
     p.set_defaults(func=main)
@@ -124,10 +120,7 @@ def main(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
-    try:
-        options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
-    except ValueError as exc:
-        raise SystemExit(f"rov-mav tune: error: {exc}") from None
+    options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
     if args.bounds_file:
         lower, upper = tuning.load_bounds(args.bounds_file)
     else:
@@ -135,8 +128,9 @@ def main(args: argparse.Namespace) -> int:
     scenarios = (load_scenarios(args.scenarios, mission.environment) if args.scenarios
                  else [nominal(mission.environment)])
     problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration)
-    out = Path(args.out or f"out/tune-{mission.name}/gains.yaml")
-    plot_dir = Path(args.plot) if args.plot else out.parent
+    out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
+    plot_dir = require_writable(args.plot or out.parent, folder=True, option="--plot")
+    check_rerun_output(args, plot_dir / "tune.rrd")
 
     if args.cluster:
         from rov_mav.offline.cluster import (

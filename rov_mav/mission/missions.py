@@ -19,8 +19,17 @@ from rov_mav import config
 from rov_mav.model.environment import Environment, EnvironmentSchema
 from rov_mav.units import Angle, wrap_angle
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+MAX_DURATION = 4 * 3600.0   # s: longer than a BlueROV2's battery lasts; also bounds the offline runs' arrays
+MAX_RANGE = 10_000.0        # m: |coordinate| of a start or waypoint
+MAX_SPEED = 10.0            # m/s: far above a BlueROV2 Heavy's ~1.5 m/s
+MIN_SEGMENT = 0.01          # s: the shortest hold or line (smooth ramps need a few control periods anyway)
+
+Vec3 = Annotated[list[Annotated[float, Field(ge=-MAX_RANGE, le=MAX_RANGE)]], Field(min_length=3, max_length=3)]
+Velocity = Annotated[list[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED)]], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
+Speed = Annotated[float, Field(gt=0, le=MAX_SPEED)]
+Seconds = Annotated[float, Field(ge=MIN_SEGMENT, le=MAX_DURATION)]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}$")]   # it names the output folders
 
 REFERENCE_COLUMNS = 18   # eta_d (6), eta_dot_d (6), eta_ddot_d (6)
 
@@ -32,10 +41,10 @@ class _StartSchema(config.StrictModel):
 
 class _SegmentSchema(config.StrictModel):
     goto: Vec3 | None = None        # NED waypoint, m
-    hold: Positive | None = None    # s
-    line: Vec3 | None = None        # constant NED velocity, m/s
-    speed: Positive | None = None   # m/s, cruise speed of a goto
-    duration: Positive | None = None  # s, of a line
+    hold: Seconds | None = None     # s
+    line: Velocity | None = None    # constant NED velocity, m/s
+    speed: Speed | None = None      # m/s, cruise speed of a goto
+    duration: Seconds | None = None  # s, of a line
     heading: Angle | None = None    # heading to reach by the end of a goto or hold
     ramp_up: bool = True            # line only: false starts at full velocity (the report's Eq. 3.1)
 
@@ -67,10 +76,10 @@ class _LimitsSchema(config.StrictModel):
 
 
 class _MissionSchema(config.StrictModel):
-    name: str
+    name: Name
     description: str = ""
     start: _StartSchema
-    ramp_time: Positive = 2.0
+    ramp_time: Seconds = 2.0
     path: Annotated[list[_SegmentSchema], Field(min_length=1)]
     environment: EnvironmentSchema = EnvironmentSchema()
     limits: _LimitsSchema = _LimitsSchema()
@@ -207,6 +216,9 @@ def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
         segments.append(seg)
         t += seg.duration
         pose = seg.p1
+    if t > MAX_DURATION:
+        raise config.ConfigError(f"{source}: path: lasts {t:.6g} s, more than {MAX_DURATION:g} s "
+                                 f"({MAX_DURATION / 3600:g} h)")
     return segments
 
 

@@ -17,6 +17,7 @@ APPLICATION_ID = "rov_mav"
 VIEWER_PORT = 9876    # Rerun's default, where `spawn` starts (or finds) a viewer
 DEFAULT_URL = f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"
 MODES = ("spawn", "connect", "save", "off")
+URL_SCHEMES = ("rerun", "rerun+http", "rerun+https")
 FLUSH_TIMEOUT = 3.0   # s to hand the last data to a viewer before giving up on it
 
 
@@ -47,7 +48,20 @@ def parse_target(text: str) -> RerunTarget:
         raise ValueError("save needs a file: save:FILE.rrd")
     if mode in ("spawn", "off") and location:
         raise ValueError(f"'{mode}' takes no argument")
+    if mode == "connect" and location:
+        _check_url(location)
     return RerunTarget(mode, location or (DEFAULT_URL if mode == "connect" else None))
+
+
+def _check_url(url: str) -> None:
+    """ValueError unless `url` is a viewer URL with a host (and a valid port, if any): rerun+http(s)://HOST[:PORT]/..."""
+    parts = urlsplit(url)
+    try:
+        parts.port
+    except ValueError:
+        raise ValueError(f"'{url}': the port must be a number from 0 to 65535") from None
+    if parts.scheme not in URL_SCHEMES or not parts.hostname:
+        raise ValueError(f"'{url}': expected a viewer URL like {DEFAULT_URL}")
 
 
 def default_target(default_file: str | Path, environ: Mapping[str, str] = os.environ) -> RerunTarget:
