@@ -37,6 +37,8 @@ class StrictModel(BaseModel):
 
 def read_bytes(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
     """The content of the regular file `path`, at most `limit` bytes; ConfigError naming it otherwise."""
+    if not str(path).strip():
+        raise ConfigError("empty file name")
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except FileNotFoundError:

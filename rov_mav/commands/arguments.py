@@ -30,9 +30,9 @@ def number(low: float, high: float = math.inf, *, integer: bool = False, low_ope
     """An argparse type: a finite number (an integer if `integer`) with low <= x <= high (low < x if
     `low_open`); NaN and infinity are refused."""
     kind = "an integer" if integer else "a number"
-    bound = f"above {low:g}" if low_open else f"at least {low:g}"
-    wanted = (f"{kind} from {low:g} to {high:g}" if not low_open and math.isfinite(high)
-              else f"{kind} {bound}" + (f" and at most {high:g}" if math.isfinite(high) else ""))
+    bound = f"above {_show(low)}" if low_open else f"at least {_show(low)}"
+    wanted = (f"{kind} from {_show(low)} to {_show(high)}" if not low_open and math.isfinite(high)
+              else f"{kind} {bound}" + (f" and at most {_show(high)}" if math.isfinite(high) else ""))
 
     def parse(text: str) -> float:
         try:
@@ -45,6 +45,11 @@ def number(low: float, high: float = math.inf, *, integer: bool = False, low_ope
 
     parse.__name__ = wanted
     return parse
+
+
+def _show(value: float) -> str:
+    """A bound as a user would write it: 4294967295, 0.0001, 14400."""
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
 
 
 positive_float = number(0.0, low_open=True)
@@ -82,6 +87,8 @@ six_floats = finite_floats(6)
 def endpoint(kinds: tuple[str, ...]) -> Callable[[str], str]:
     """An argparse type: KIND:HOST:PORT with KIND one of `kinds` (see `sim_bridge.link.parse_endpoint`)."""
     def parse(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError("empty connection string")
         try:
             parse_endpoint(text, kinds)
         except LinkError as exc:
@@ -110,16 +117,17 @@ def mavlink_target(text: str) -> str:
     return text
 
 
-CLUSTER_LOCAL = re.compile(r"local:(\d{1,4})")
+CLUSTER_LOCAL = re.compile(r"local:(\d+)")
+MAX_WORKERS = 256
 
 
 def cluster_address(text: str) -> str:
-    """An argparse type: 'local:N' (1 <= N <= 256 worker processes) or 'tcp://HOST:PORT' (a Dask scheduler)."""
+    """An argparse type: 'local:N' (1 <= N <= MAX_WORKERS worker processes) or 'tcp://HOST:PORT' (a Dask scheduler)."""
     local = CLUSTER_LOCAL.fullmatch(text)
     if local is not None:
-        if 1 <= int(local.group(1)) <= 256:
+        if len(local.group(1)) <= 3 and 1 <= int(local.group(1)) <= MAX_WORKERS:
             return text
-        raise argparse.ArgumentTypeError(f"'{text}': local:N needs a number of workers N from 1 to 256")
+        raise argparse.ArgumentTypeError(f"'{text}': local:N needs a number of workers N from 1 to {MAX_WORKERS}")
     if text.startswith("tcp://"):
         try:
             parse_endpoint("tcp:" + text.removeprefix("tcp://"), ("tcp",))
@@ -131,11 +139,12 @@ def cluster_address(text: str) -> str:
 
 # -- output paths -------------------------------------------------------------------------------------------------
 
-def unwritable(path: Path, folder: bool) -> str | None:
+def unwritable(path: str | Path, folder: bool) -> str | None:
     """Why a file (or a folder, if `folder`) could not be written at `path`, or None if it could: checked on the
     path and its nearest existing ancestor, creating nothing."""
     if not str(path).strip():
         return "empty path"
+    path = Path(path)
     try:
         if path.exists():
             if path.is_dir() != folder:
@@ -155,16 +164,15 @@ def unwritable(path: Path, folder: bool) -> str | None:
 
 def require_writable(path: str | Path, *, folder: bool, option: str) -> Path:
     """`path`, or ConfigError '{option} {path}: reason' when it cannot be written (see `unwritable`)."""
-    path = Path(path)
     problem = unwritable(path, folder)
     if problem is not None:
         raise ConfigError(f"{option} {path}: {problem}")
-    return path
+    return Path(path)
 
 
 def _output(folder: bool) -> Callable[[str], str]:
     def parse(text: str) -> str:
-        problem = unwritable(Path(text), folder)
+        problem = unwritable(text, folder)
         if problem is not None:
             raise argparse.ArgumentTypeError(f"{text}: {problem}")
         return text

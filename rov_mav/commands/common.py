@@ -67,7 +67,7 @@ def _rerun_target(text: str) -> telemetry.RerunTarget:
         target = telemetry.parse_target(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    problem = unwritable(Path(target.location), folder=False) if target.mode == "save" else None
+    problem = unwritable(target.location, folder=False) if target.mode == "save" else None
     if problem is not None:
         raise argparse.ArgumentTypeError(f"{target.location}: {problem}")
     return target

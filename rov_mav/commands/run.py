@@ -191,17 +191,17 @@ def main(args: argparse.Namespace) -> int:
             bridge.stop()
         print(f"rov-mav run: error: {exc}", file=sys.stderr)
         return 1
-    if args.log:
-        run_log = RunLog(args.log)
-        session.taps.append(run_log.log_mavlink)
-        sinks.append(run_log)
-    rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
-    if rerun is not None:
-        sinks.append(rerun)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
-    runner = Runner(session, mission, Controller(model, settings), Actuation(model, limits.max_thrust), options,
-                    sinks, true_disturbance)
-    try:
+    try:   # whatever fails from here on, the link and the built-in vehicle are closed
+        if args.log:
+            run_log = RunLog(args.log)
+            session.taps.append(run_log.log_mavlink)
+            sinks.append(run_log)
+        rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
+        if rerun is not None:
+            sinks.append(rerun)
+        runner = Runner(session, mission, Controller(model, settings), Actuation(model, limits.max_thrust), options,
+                        sinks, true_disturbance)
         result = runner.run()
     finally:
         for sink in sinks:

@@ -44,6 +44,7 @@ Stop with Ctrl-C or SIGTERM; the achieved speedup and the loop's timing are prin
 """
 
 
+FLOAT32_MAX = 3.4028234663852886e38
 MAX_START_DEPTH = 300.0            # m: a Bar30 depth sensor's range
 MIN_STEP, MAX_STEP = 1e-4, 0.01    # s: 10 kHz to 100 Hz (ArduSub runs at 400 Hz)
 
@@ -62,7 +63,8 @@ def _origin(text: str) -> tuple[float, float, float]:
 
 
 def _param(text: str) -> tuple[str, float]:
-    """NAME=VALUE; whether NAME exists and VALUE fits a float32 parameter is the bridge's to say."""
+    """NAME=VALUE with VALUE a finite float32, as MAVLink carries parameters (whether NAME exists is the bridge's
+    to say)."""
     name, _, value = text.partition("=")
     try:
         number = float(value)
@@ -70,6 +72,8 @@ def _param(text: str) -> tuple[str, float]:
         number = None
     if number is None or not name.strip():
         raise argparse.ArgumentTypeError(f"{text}: expected NAME=VALUE")
+    if not abs(number) <= FLOAT32_MAX:
+        raise argparse.ArgumentTypeError(f"{text}: the value must be a finite 32-bit float (|VALUE| <= 3.4e38)")
     return name.strip().upper(), number
 
 
