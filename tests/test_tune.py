@@ -220,4 +220,4 @@ def test_tune_command_reports_a_bad_bounds_file_in_one_line(tmp_path, capsys):
     bounds = tmp_path / "b.yaml"
     bounds.write_text("lower: {k1: [1, 1, 1, 1, 1, 1]}\n")
     assert cli.main(["tune", str(MISSIONS / "line.yaml"), "--bounds-file", str(bounds)]) == 2
-    assert capsys.readouterr().err.strip() == f"rov-mav: error: {bounds}: lower.k2: missing"
+    assert capsys.readouterr().err.strip() == f"rov-mav tune: error: {bounds}: lower.k2: missing"

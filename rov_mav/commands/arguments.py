@@ -174,7 +174,7 @@ def _output(folder: bool) -> Callable[[str], str]:
     def parse(text: str) -> str:
         problem = unwritable(text, folder)
         if problem is not None:
-            raise argparse.ArgumentTypeError(f"{text}: {problem}")
+            raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
         return text
     parse.__name__ = "folder" if folder else "file name"
     return parse

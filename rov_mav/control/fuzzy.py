@@ -18,14 +18,16 @@ from pydantic import Field, field_validator
 
 from rov_mav import config
 
-PositiveFloat = Annotated[float, Field(gt=0)]
+PositiveFloat = Annotated[float, Field(gt=0, le=1e6)]
+Width = Annotated[float, Field(ge=1e-6, le=1e6)]   # of a Gaussian set: narrower ones overflow (x - c) / w squared
+MAX_POINTS = 100_000   # samples of a set or of the lookup table (the shipped rules use a few hundred)
 
 
 class _RuleSchema(config.StrictModel):
     input: PositiveFloat
-    input_width: PositiveFloat
+    input_width: Width
     output: PositiveFloat
-    output_width: PositiveFloat
+    output_width: Width
 
 
 class _GroupSchema(config.StrictModel):
@@ -35,8 +37,8 @@ class _GroupSchema(config.StrictModel):
 
 
 class _FuzzySchema(config.StrictModel):
-    output_points: Annotated[int, Field(ge=11)]
-    table_points: Annotated[int, Field(ge=3)]
+    output_points: Annotated[int, Field(ge=11, le=MAX_POINTS)]
+    table_points: Annotated[int, Field(ge=3, le=MAX_POINTS)]
     groups: dict[str, _GroupSchema]
 
     @field_validator("groups")

@@ -14,10 +14,12 @@ from pydantic import Field, field_validator, model_validator
 from rov_mav import config
 from rov_mav.model import kernel
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
-Positive = Annotated[float, Field(gt=0)]
-NonNegative6 = Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=6, max_length=6)]
+MAX_VALUE = 1e6   # |any number| in a vehicle file (SI units): far beyond any ROV, and products stay finite
+Real = Annotated[float, Field(ge=-MAX_VALUE, le=MAX_VALUE)]
+Vec3 = Annotated[list[Real], Field(min_length=3, max_length=3)]
+Vec6 = Annotated[list[Real], Field(min_length=6, max_length=6)]
+Positive = Annotated[float, Field(gt=0, le=MAX_VALUE)]
+NonNegative6 = Annotated[list[Annotated[float, Field(ge=0, le=MAX_VALUE)]], Field(min_length=6, max_length=6)]
 
 DEFAULT_VEHICLE_FILE = "bluerov2_heavy.yaml"
 
@@ -25,7 +27,7 @@ DEFAULT_VEHICLE_FILE = "bluerov2_heavy.yaml"
 class _ThrusterSchema(config.StrictModel):
     positions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
-    time_constant: Annotated[float, Field(ge=0)]
+    time_constant: Annotated[float, Field(ge=0, le=10.0)]
 
     @field_validator("directions")
     @classmethod
