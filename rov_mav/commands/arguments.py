@@ -38,7 +38,7 @@ def number(low: float, high: float = math.inf, *, integer: bool = False, low_ope
         try:
             value = int(text, 10) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not {kind}") from None
+            raise argparse.ArgumentTypeError(f"{text}: not {kind}") from None
         if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
             raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
         return value
@@ -70,11 +70,11 @@ def finite_floats(size: int, what: str = "numbers") -> Callable[[str], list[floa
         try:
             values = [float(v) for v in text.split(",")]
         except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not {size} comma-separated {what}") from None
+            raise argparse.ArgumentTypeError(f"{text}: not {size} comma-separated {what}") from None
         if len(values) != size:
-            raise argparse.ArgumentTypeError(f"'{text}' has {len(values)} values, expected {size}")
+            raise argparse.ArgumentTypeError(f"{text}: {len(values)} values, expected {size}")
         if not all(math.isfinite(v) for v in values):
-            raise argparse.ArgumentTypeError(f"'{text}': NaN or infinity")
+            raise argparse.ArgumentTypeError(f"{text}: NaN or infinity")
         return values
     return parse
 
@@ -127,14 +127,14 @@ def cluster_address(text: str) -> str:
     if local is not None:
         if len(local.group(1)) <= 3 and 1 <= int(local.group(1)) <= MAX_WORKERS:
             return text
-        raise argparse.ArgumentTypeError(f"'{text}': local:N needs a number of workers N from 1 to {MAX_WORKERS}")
+        raise argparse.ArgumentTypeError(f"{text}: local:N needs a number of workers N from 1 to {MAX_WORKERS}")
     if text.startswith("tcp://"):
         try:
             parse_endpoint("tcp:" + text.removeprefix("tcp://"), ("tcp",))
         except LinkError:
-            raise argparse.ArgumentTypeError(f"'{text}': expected tcp://HOST:PORT, PORT from 1 to 65535") from None
+            raise argparse.ArgumentTypeError(f"{text}: expected tcp://HOST:PORT, PORT from 1 to 65535") from None
         return text
-    raise argparse.ArgumentTypeError(f"'{text}' is neither local:N nor tcp://HOST:PORT")
+    raise argparse.ArgumentTypeError(f"{text}: neither local:N nor tcp://HOST:PORT")
 
 
 # -- output paths -------------------------------------------------------------------------------------------------

@@ -50,9 +50,9 @@ def bounds_pair(text: str) -> tuple[float, float]:
     try:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not LO,HI") from None
+        raise argparse.ArgumentTypeError(f"{text}: not LO,HI") from None
     if not 0 < lo < hi < math.inf:
-        raise argparse.ArgumentTypeError(f"'{text}': need 0 < LO < HI, both finite (Eq. 2.33: k1, k2 > 0)")
+        raise argparse.ArgumentTypeError(f"{text}: need 0 < LO < HI, both finite (Eq. 2.33: k1, k2 > 0)")
     return lo, hi
 
 
