@@ -120,6 +120,9 @@ def main(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
+    out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
+    plot_dir = require_writable(args.plot or out.parent, folder=True, option="--plot")
+    check_rerun_output(args, plot_dir / "tune.rrd")
     options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
     if args.bounds_file:
         lower, upper = tuning.load_bounds(args.bounds_file)
@@ -128,9 +131,6 @@ def main(args: argparse.Namespace) -> int:
     scenarios = (load_scenarios(args.scenarios, mission.environment) if args.scenarios
                  else [nominal(mission.environment)])
     problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration)
-    out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
-    plot_dir = require_writable(args.plot or out.parent, folder=True, option="--plot")
-    check_rerun_output(args, plot_dir / "tune.rrd")
 
     if args.cluster:
         from rov_mav.offline.cluster import (
