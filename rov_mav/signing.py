@@ -16,7 +16,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.config import ConfigError
+from rov_mav.config import ConfigError, read_bytes
 
 KEY_BYTES = 32
 EPOCH_2015 = 1_420_070_400          # unix s at 2015-01-01 00:00 UTC, where signing timestamps start
@@ -26,16 +26,15 @@ VEHICLE_HEARTBEATS = 3              # rejected HEARTBEATs of an autopilot that s
 
 
 def key_from_file(path: str | Path) -> bytes:
-    """The 32 raw bytes of a key file; ConfigError (one line) for anything else."""
+    """The 32 raw bytes of a key file (a regular file: a FIFO or device is refused, not read); ConfigError (one
+    line) for anything else."""
     try:
-        with open(path, "rb") as f:
-            data = f.read(KEY_BYTES + 1)
-    except OSError as exc:
-        raise ConfigError(f"--signing-key {path}: cannot read it: {(exc.strerror or str(exc)).lower()}") from None
+        data = read_bytes(path)
+    except ConfigError as exc:
+        raise ConfigError(f"--signing-key {exc}") from None
     if len(data) != KEY_BYTES:
-        size = "more than 32" if len(data) > KEY_BYTES else str(len(data))
-        raise ConfigError(f"--signing-key {path}: a key file holds exactly {KEY_BYTES} raw bytes, this one {size} "
-                          "(make one with `head -c 32 /dev/urandom > FILE`, or use --signing-passphrase)")
+        raise ConfigError(f"--signing-key {path}: a key file holds exactly {KEY_BYTES} raw bytes, this one "
+                          f"{len(data)} (make one with `head -c 32 /dev/urandom > FILE`, or use --signing-passphrase)")
     return data
 
 

@@ -155,6 +155,26 @@ def test_bad_files(workdir, capsys, where, kind):
     assert files_under(workdir.parent) == before
 
 
+KEY_FILES = {   # a --signing-key file of a bad kind -> what the line must say
+    "png": "a key file holds exactly 32 raw bytes, this one 67",
+    "empty": "a key file holds exactly 32 raw bytes, this one 0",
+    "directory": "is a directory, expected a file",
+    "huge": "too large (209,715,200 bytes",
+    "fifo": "not a regular file",
+    "missing": "no such file",
+}
+
+
+@pytest.mark.parametrize("kind", list(KEY_FILES))
+@pytest.mark.parametrize("command", [["run", SQUARE], ["sim-bridge"]], ids=["run", "sim-bridge"])
+def test_bad_signing_key_files(workdir, capsys, command, kind):
+    bad = make_bad_file(workdir.parent / "inputs", kind)
+    status, err = rov_mav([*command, "--signing-key", str(bad)], capsys)
+    assert status == 2
+    assert_one_line(err, f"rov-mav {command[0]}: error: --signing-key {bad}", KEY_FILES[kind])
+    assert files_under(workdir) == set()
+
+
 def write_yaml(path: Path, data) -> Path:
     path.write_text(yaml.safe_dump(data))
     return path

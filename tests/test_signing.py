@@ -78,13 +78,13 @@ def test_a_key_file_of_anything_but_32_bytes_is_one_line_and_exit_2(tmp_path, ca
     for argv in (["run", str(mission), "--signing-key", str(key)], ["sim-bridge", "--signing-key", str(key)]):
         assert rov_mav(argv) == 2
         err = capsys.readouterr().err.strip()
-        assert "\n" not in err and err.startswith("rov-mav: error: --signing-key") and str(key) in err, err
+        assert "\n" not in err and err.startswith(f"rov-mav {argv[0]}: error: --signing-key") and str(key) in err, err
 
 
 @pytest.mark.parametrize("passphrase", ["", "sésame"])
 def test_an_empty_or_non_ascii_passphrase_is_refused(tmp_path, capsys, passphrase):
     assert rov_mav(["run", str(short_mission(tmp_path)), "--signing-passphrase", passphrase]) == 2
-    assert capsys.readouterr().err.strip().startswith("rov-mav: error: --signing-passphrase")
+    assert capsys.readouterr().err.strip().startswith("rov-mav run: error: --signing-passphrase")
 
 
 def test_a_frame_with_the_wrong_key_does_not_lock_the_genuine_stream_out():

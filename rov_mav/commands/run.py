@@ -104,15 +104,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
     link = p.add_argument_group("link")
     link.add_argument("--sysid", type=sysid, metavar="ID",
-                      help="our MAVLink system id, 1 to 255 (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, usually 255; "
-                           "another one, or a pilot's joystick on that sysid, makes the run take the GCS role with "
+                      help="our MAVLink system id, 1 to 255 (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, "
+                           "usually 255; another one, or a pilot's joystick on that sysid, makes the run take the GCS role with "
                            "its own sysid for the run)")
     link.add_argument("--baud", type=count(MAX_BAUD), default=115200, help="serial baud rate (default 115200)")
     link.add_argument("--heartbeat-timeout", type=seconds, default=15.0, metavar="S",
                       help="wall seconds to wait for the vehicle's heartbeat (default 15)")
     link.add_argument("--position-timeout", type=seconds, default=90.0, metavar="S",
                       help="wall seconds to wait for LOCAL_POSITION_NED (default 90)")
-    link.add_argument("--link-timeout", type=number(0.0, MAX_LINK_TIMEOUT, low_open=True), default=2.0, metavar="S",
+    link.add_argument("--link-timeout", type=number(0.0, MAX_LINK_TIMEOUT, low_open=True), default=2.0,
+                      metavar="S",
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
     p.add_argument("--approach-speed", type=number(0.0, MAX_SPEED, low_open=True), default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
