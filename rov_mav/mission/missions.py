@@ -13,13 +13,14 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import AfterValidator, Field, model_validator
 
 from rov_mav import config
 from rov_mav.model.environment import Environment, EnvironmentSchema
 from rov_mav.units import Angle, wrap_angle
 
-MAX_DURATION = 4 * 3600.0   # s: longer than a BlueROV2's battery lasts; also bounds the offline runs' arrays
+MAX_DURATION = 24 * 3600.0  # s: longer than any dive; long soak runs fit
+MAX_SAMPLES = 1_440_000     # reference samples built at once: 4 h at 100 Hz (an offline run holds every step)
 MAX_RANGE = 10_000.0        # m: |coordinate| of a start or waypoint
 MAX_SPEED = 10.0            # m/s: far above a BlueROV2 Heavy's ~1.5 m/s
 MIN_SEGMENT = 0.01          # s: the shortest hold or line (smooth ramps need a few control periods anyway)
@@ -29,7 +30,17 @@ Velocity = Annotated[list[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED)]],
 Positive = Annotated[float, Field(gt=0)]
 Speed = Annotated[float, Field(gt=0, le=MAX_SPEED)]
 Seconds = Annotated[float, Field(ge=MIN_SEGMENT, le=MAX_DURATION)]
-Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}$")]   # it names the output folders
+
+
+def _folder_name(name: str) -> str:
+    """A mission's name names its output folders (out/run-NAME): one plain path component."""
+    if not 0 < len(name) <= 64 or name.startswith(".") or any(c in "/\\" or not c.isprintable() for c in name):
+        raise ValueError("must be usable as a folder name: 1 to 64 printable characters, no '/' or '\\', "
+                         "not starting with '.'")
+    return name
+
+
+Name = Annotated[str, AfterValidator(_folder_name)]
 
 REFERENCE_COLUMNS = 18   # eta_d (6), eta_dot_d (6), eta_ddot_d (6)
 
@@ -177,6 +188,9 @@ class Mission:
         if n < 1:
             raise config.ConfigError(f"{self.source}: duration {duration:g} s is shorter than one control period "
                                      f"({dt:g} s)")
+        if n > MAX_SAMPLES:
+            raise config.ConfigError(f"{self.source}: {duration:g} s in steps of {dt:g} s is more than "
+                                     f"{MAX_SAMPLES:,} steps ({MAX_SAMPLES * dt:g} s): too long to hold in memory")
         return self.reference(np.arange(n + 1) * dt)
 
     def progress(self, t: float) -> float:
