@@ -20,7 +20,7 @@ from rov_mav.config import ConfigError
 from sim_bridge.link import LinkError, parse_endpoint
 
 MAVLINK_KINDS = ("udp", "udpin", "udpout", "udpbcast", "tcp", "tcpin")   # pymavlink's network connections
-MAX_SPEEDUP = 1000.0       # the built-in vehicle cannot hold more than a few hundred on one core
+MAX_SPEEDUP = 1000.0       # beyond it a 400 Hz step would get 2.5 us of wall time: the vehicle could only slip
 MAX_WAIT = 3600.0          # s: the longest timeout worth waiting for
 MAX_SEED = 2**32 - 1       # what numpy's and the noise generators' seeds take
 
@@ -42,8 +42,6 @@ def number(low: float, high: float = math.inf, *, integer: bool = False, low_ope
         if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
             raise argparse.ArgumentTypeError(f"{text}: expected {wanted}")
         return value
-
-    parse.__name__ = wanted
     return parse
 
 
@@ -64,13 +62,13 @@ def count(high: int) -> Callable[[str], int]:
     return number(1, high, integer=True)
 
 
-def finite_floats(size: int, what: str = "numbers") -> Callable[[str], list[float]]:
+def finite_floats(size: int) -> Callable[[str], list[float]]:
     """An argparse type: `size` comma-separated finite numbers."""
     def parse(text: str) -> list[float]:
         try:
             values = [float(v) for v in text.split(",")]
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text}: not {size} comma-separated {what}") from None
+            raise argparse.ArgumentTypeError(f"{text}: not {size} comma-separated numbers") from None
         if len(values) != size:
             raise argparse.ArgumentTypeError(f"{text}: {len(values)} values, expected {size}")
         if not all(math.isfinite(v) for v in values):
@@ -176,7 +174,6 @@ def _output(folder: bool) -> Callable[[str], str]:
         if problem is not None:
             raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
         return text
-    parse.__name__ = "folder" if folder else "file name"
     return parse
 
 
