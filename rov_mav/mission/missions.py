@@ -80,7 +80,7 @@ class _SegmentSchema(config.StrictModel):
         return self
 
 
-class _LimitsSchema(config.StrictModel):
+class LimitsSchema(config.StrictModel):
     max_depth: Positive | None = None            # m
     max_tracking_error: Positive | None = None   # m
     max_thrust: Positive | None = None           # N per thruster
@@ -93,7 +93,7 @@ class _MissionSchema(config.StrictModel):
     ramp_time: Seconds = 2.0
     path: Annotated[list[_SegmentSchema], Field(min_length=1)]
     environment: EnvironmentSchema = EnvironmentSchema()
-    limits: _LimitsSchema = _LimitsSchema()
+    limits: LimitsSchema = LimitsSchema()
 
 
 @dataclass(frozen=True)
@@ -136,16 +136,36 @@ class Segment:
 
 
 class Mission:
-    """A validated mission: its reference trajectory, environment (simulation only) and limits (runs)."""
+    """A validated mission: its reference trajectory, environment (simulation only) and limits (runs).
 
-    def __init__(self, spec: _MissionSchema, source: str):
+    `labels` name where each path entry came from in the source (default 'path[i]'; a QGroundControl plan's item);
+    `origin` is (lat, lon) in degrees of local (0, 0) when the mission was planned on the globe; `skipped` lists
+    the source's items left out (one line each). A mission deeper than its own `limits.max_depth` is refused."""
+
+    def __init__(self, spec: _MissionSchema, source: str, labels: list[str] | None = None,
+                 origin: tuple[float, float] | None = None, skipped: tuple[str, ...] = ()):
         self.spec = spec
         self.source = source
         self.name = spec.name
         self.environment = Environment.from_schema(spec.environment)
         self.limits = spec.limits
-        self.segments = _build_segments(spec, source)
+        self.labels = labels or [f"path[{i}]" for i in range(len(spec.path))]
+        self.origin = origin
+        self.skipped = skipped
+        self.segments = _build_segments(spec, source, self.labels)
         self.duration = self.segments[-1].t0 + self.segments[-1].duration
+        if spec.limits.max_depth is not None:
+            self.check_depth(spec.limits.max_depth, "limits.max_depth")
+
+    def check_depth(self, max_depth: float, limit: str) -> None:
+        """ConfigError naming the first point of the path (start or a segment's end) deeper than `max_depth` m;
+        `limit` names where the limit came from."""
+        points = [("start", self.segments[0].p0)] + [(label, seg.p1) for label, seg in zip(self.labels,
+                                                                                             self.segments)]
+        for where, pose in points:
+            if pose[2] > max_depth:
+                raise config.ConfigError(f"{self.source}: {where}: depth {pose[2]:g} m is past {limit} "
+                                         f"{max_depth:g} m")
 
     @property
     def start_pose(self) -> np.ndarray:
@@ -198,13 +218,12 @@ class Mission:
         return min(max(t / self.duration, 0.0), 1.0)
 
 
-
-def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
+def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> list[Segment]:
     pose = np.array([*spec.start.position, spec.start.heading], dtype=float)
     t = 0.0
     segments: list[Segment] = []
     for i, entry in enumerate(spec.path):
-        where = f"{source}: path[{i}]"
+        where = f"{source}: {labels[i]}"
         last = i == len(spec.path) - 1
         if entry.goto is not None:
             target = np.array([*entry.goto, pose[3]])
@@ -239,3 +258,9 @@ def _build_segments(spec: _MissionSchema, source: str) -> list[Segment]:
 def load_mission(path: str | Path) -> Mission:
     """Load and validate a mission file; ConfigError (file, key, reason) before anything runs."""
     return Mission(config.load(_MissionSchema, path), str(path))
+
+
+def mission_from_dict(data: dict, source: str, **extra) -> Mission:
+    """A mission from the keys a mission file holds (built by another reader, e.g. of a QGroundControl plan);
+    `extra` goes to `Mission` (labels, origin, skipped)."""
+    return Mission(config.parse(_MissionSchema, data, source), source, **extra)
