@@ -78,6 +78,15 @@ def finite_floats(size: int) -> Callable[[str], list[float]]:
 
 
 six_floats = finite_floats(6)
+plan_speed = number(0.0, 1.5, low_open=True)     # m/s: a BlueROV2 Heavy's top speed (mission_items.MAX_SPEED)
+
+
+def lat_lon(text: str) -> tuple[float, float]:
+    """An argparse type: 'LAT,LON' in degrees, on Earth."""
+    lat, lon = finite_floats(2)(text)
+    if not (abs(lat) <= 90 and abs(lon) <= 180):
+        raise argparse.ArgumentTypeError(f"{text}: latitude within +-90, longitude within +-180 degrees")
+    return lat, lon
 
 
 # -- connection strings -------------------------------------------------------------------------------------------

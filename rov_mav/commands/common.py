@@ -1,4 +1,5 @@
-"""Command-line options shared by the subcommands that fly a mission (simulate, run, tune)."""
+"""Command-line options shared by the subcommands that fly a mission (simulate, run, tune): the mission file, the
+controller, the Rerun sink."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rov_mav.commands.arguments import require_writable, six_floats, unwritable
+from rov_mav.commands.arguments import lat_lon, plan_speed, require_writable, six_floats, unwritable
 from rov_mav.control.controller import SCHEDULES, ControllerSettings, load_settings
 
 if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
@@ -16,8 +17,47 @@ if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording 
     import rerun as rr
 
     from rov_mav import telemetry
+    from rov_mav.mission.mission_items import PlanOptions
     from rov_mav.mission.missions import Mission
     from rov_mav.model.vehicle import Vehicle
+
+MISSION_HELP = ("mission file: our YAML (e.g. missions/square.yaml), a QGroundControl plan (e.g. "
+                "missions/under_ice_survey.plan), or a YAML naming a plan (plan: FILE.plan) with its environment "
+                "and limits")
+
+
+def add_plan_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("QGroundControl plans and vehicle missions")
+    group.add_argument("--origin", type=lat_lon, metavar="LAT,LON",
+                       help="where local (0, 0) is: waypoints become north/east metres from here (default: the "
+                            "plan's planned home, or the vehicle's home)")
+    group.add_argument("--plan-speed", type=plan_speed, metavar="M/S",
+                       help="speed of the legs between waypoints (default: the plan's cruise speed, or the "
+                            "vehicle's WPNAV_SPEED); DO_CHANGE_SPEED items still change it")
+    group.add_argument("--skip-unflyable", action="store_true",
+                       help="leave out (and list) items this controller cannot fly (takeoff, land, return to "
+                            "launch, camera, servo, jumps...) instead of refusing the plan")
+
+
+def plan_options(args: argparse.Namespace) -> PlanOptions:
+    from rov_mav.mission.mission_items import PlanOptions
+
+    return PlanOptions(origin=args.origin, speed=args.plan_speed, skip_unflyable=args.skip_unflyable)
+
+
+def load_mission(args: argparse.Namespace) -> Mission:
+    """The mission named on the command line (YAML or .plan), with the plan options; items left out are listed on
+    stderr."""
+    from rov_mav.mission.loader import load
+
+    mission = load(args.mission, plan_options(args))
+    report_skipped(mission)
+    return mission
+
+
+def report_skipped(mission: Mission) -> None:
+    for line in mission.skipped:
+        print(f"rov-mav: {mission.source}: {line}", file=sys.stderr)
 
 
 def add_controller_options(parser: argparse.ArgumentParser) -> None:

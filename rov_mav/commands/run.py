@@ -20,14 +20,20 @@ from rov_mav.commands.arguments import (
     sysid,
 )
 from rov_mav.commands.common import (
+    MISSION_HELP,
     add_controller_options,
+    add_plan_options,
     add_rerun_option,
     add_signing_options,
     check_rerun_output,
     controller_settings,
+    load_mission,
+    plan_options,
+    report_skipped,
     rerun_sink,
     signing_key,
 )
+from rov_mav.config import ConfigError
 from rov_mav.mission.missions import MAX_SPEED
 
 MAX_RATE = 400.0              # Hz: ArduSub's main loop; no telemetry comes faster
@@ -67,6 +73,8 @@ examples:
   rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
   rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
   rov-mav run --target udp:0.0.0.0:14550 --signing-passphrase TEXT missions/square.yaml   # a vehicle that signs
+  rov-mav run missions/under_ice_survey.plan --speedup 10        # a QGroundControl plan
+  rov-mav run --target udp:127.0.0.1:14550 --mission-from-vehicle  # the mission uploaded to the vehicle
 
 exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2 bad arguments or files;
 3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
@@ -76,7 +84,12 @@ exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)",
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("mission", help="mission YAML (e.g. missions/square.yaml)")
+    p.add_argument("mission", nargs="?", help=MISSION_HELP)
+    p.add_argument("--mission-from-vehicle", action="store_true",
+                   help="instead of a file, fly the mission stored on the vehicle (uploaded with QGroundControl or "
+                        "MAVProxy): downloaded with the MAVLink mission protocol, read as a plan's items; needs "
+                        "--target")
+    add_plan_options(p)
     p.add_argument("--target", type=mavlink_target, metavar="CONN",
                    help="pymavlink connection: udp:HOST:PORT (listen; a vehicle sends to 14550), udpout:HOST:PORT, "
                         "tcp:HOST:PORT (ArduSub SITL: tcp:127.0.0.1:5760), or a serial device (see --baud); "
@@ -133,16 +146,18 @@ def _free_udp_port() -> int:
 
 
 def _start_bridge(mission, speedup: float, key: bytes | None):
-    """The built-in vehicle in a background thread; returns (bridge, connection string for it)."""
+    """The built-in vehicle in a background thread (its home at the mission's origin when it has one); returns
+    (bridge, connection string for it)."""
     from rov_mav.flight.link import LinkError
-    from sim_bridge.config import BridgeConfig
+    from sim_bridge.config import DEFAULT_ORIGIN, BridgeConfig
     from sim_bridge.link import LinkError as BridgeLinkError
     from sim_bridge.server import Bridge
 
     port = _free_udp_port()
+    origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
     bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
                                  environment=mission.environment, start_depth=float(mission.start_pose[2]),
-                                 signing_key=key))
+                                 origin=origin, signing_key=key))
     try:
         bridge.start()
     except BridgeLinkError as exc:
@@ -150,6 +165,28 @@ def _start_bridge(mission, speedup: float, key: bytes | None):
     print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {bridge.params.firmware}) on udp port {port}, "
           f"speedup {speedup:g}", flush=True)
     return bridge, f"udpout:127.0.0.1:{port}"
+
+
+def _limits(args: argparse.Namespace, mission, limits_type):
+    """The run's limits: each flag, else the mission's own; a path deeper than --max-depth is refused here."""
+    lim = mission.limits
+    if args.max_depth is not None:
+        mission.check_depth(args.max_depth, "--max-depth")
+    return limits_type(max_depth=args.max_depth or lim.max_depth,
+                       max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
+                       max_thrust=args.max_thrust or lim.max_thrust)
+
+
+def _from_vehicle(session, args: argparse.Namespace):
+    """Connect and download the vehicle's mission (nothing on the vehicle changes)."""
+    from rov_mav.flight.vehicle_mission import vehicle_mission
+
+    vehicle = session.connect(args.heartbeat_timeout)
+    mission = vehicle_mission(session, plan_options(args))
+    report_skipped(mission)
+    print(f"mission downloaded from vehicle {vehicle.sysid}: {len(mission.segments)} segments, "
+          f"{mission.duration:.1f} s", flush=True)
+    return mission
 
 
 def main(args: argparse.Namespace) -> int:
@@ -161,37 +198,46 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.runner import Limits, Runner, RunOptions
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics
-    from rov_mav.mission.missions import load_mission
     from rov_mav.model.vehicle import load_vehicle
 
-    mission = load_mission(args.mission)
+    if (args.mission is None) != args.mission_from_vehicle or (args.mission_from_vehicle and args.target is None):
+        print("rov-mav run: error: give a mission file, or --mission-from-vehicle with --target (the built-in "
+              "vehicle starts with no mission)", file=sys.stderr)
+        return 2
+    mission = None if args.mission_from_vehicle else load_mission(args)
+    limits = None if mission is None else _limits(args, mission, Limits)
     key = signing_key(args)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
-    default_recording = Path(f"out/run-{mission.name}/run.rrd")
-    check_rerun_output(args, default_recording)
-    lim = mission.limits
-    limits = Limits(max_depth=args.max_depth or lim.max_depth,
-                    max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
-                    max_thrust=args.max_thrust or lim.max_thrust)
-    options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
-                         heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
-                         link_timeout=args.link_timeout, approach_speed=args.approach_speed, limits=limits)
-    bridge, target = None, args.target
+    if mission is not None:
+        check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
+    bridge, target, session = None, args.target, None
     sinks: list = [StatusLine()]
     try:
         if target is None:
             bridge, target = _start_bridge(mission, args.speedup, key)
         session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
                                signing_key=key)
-    except LinkError as exc:
+        if mission is None:
+            mission = _from_vehicle(session, args)
+            limits = _limits(args, mission, Limits)
+            check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
+    except (LinkError, ConfigError) as exc:
+        if session is not None:
+            session.close()
         if bridge is not None:
             bridge.stop()
+        if isinstance(exc, ConfigError):
+            raise
         print(f"rov-mav run: error: {exc}", file=sys.stderr)
         return 1
+    default_recording = Path(f"out/run-{mission.name}/run.rrd")
+    options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
+                         heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
+                         link_timeout=args.link_timeout, approach_speed=args.approach_speed, limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
         if args.log:

@@ -7,10 +7,13 @@ import json
 
 from rov_mav.commands.arguments import number, output_file, output_folder, require_writable, seed
 from rov_mav.commands.common import (
+    MISSION_HELP,
     add_controller_options,
+    add_plan_options,
     add_rerun_option,
     check_rerun_output,
     controller_settings,
+    load_mission,
     rerun_recording,
 )
 from rov_mav.mission.missions import MAX_DURATION
@@ -20,9 +23,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "simulate", help="run a mission offline against the 6-DOF model (no MAVLink)",
         description="Run the closed loop (mission reference -> law + adaptation -> 6-DOF plant) offline at "
-                    "100 Hz, using the mission file's `environment` block (disturbance, current, noise). "
+                    "100 Hz, using the mission file's `environment` block (disturbance, current, noise; a .plan: still water). "
                     "Writes figures (PNG) to --out and metrics (JSON) to --metrics.")
-    p.add_argument("mission", help="mission YAML (e.g. missions/square.yaml)")
+    p.add_argument("mission", help=MISSION_HELP)
+    add_plan_options(p)
     add_controller_options(p)
     p.add_argument("--plant-params", metavar="FILE",
                    help="vehicle YAML for the simulated plant when it differs from the controller's model "
@@ -42,12 +46,11 @@ def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav import telemetry
     from rov_mav.mission.metrics import trace_metrics
-    from rov_mav.mission.missions import load_mission
     from rov_mav.model.vehicle import load_vehicle
     from rov_mav.offline.plots import plot_run
     from rov_mav.offline.simulation import simulate
 
-    mission = load_mission(args.mission)
+    mission = load_mission(args)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model

@@ -24,15 +24,18 @@ from rov_mav.commands.arguments import (
     seed,
 )
 from rov_mav.commands.common import (
+    MISSION_HELP,
     add_controller_options,
+    add_plan_options,
     add_rerun_option,
     check_rerun_output,
     controller_settings,
+    load_mission,
     rerun_recording,
 )
 from rov_mav.control.controller import ControllerSettings
 from rov_mav.mission.metrics import trace_metrics
-from rov_mav.mission.missions import MAX_DURATION, Mission, load_mission
+from rov_mav.mission.missions import MAX_DURATION, Mission
 from rov_mav.model.vehicle import Vehicle, load_vehicle
 from rov_mav.offline import loop_kernel, pso, tuning
 from rov_mav.offline.scenarios import load_scenarios, nominal
@@ -64,7 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "whole swarm (x scenarios) through the compiled closed loop. Writes a gains YAML that "
                     "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
                     "against the starting gains (default: the report's Eqs. 4.1-4.2) on the mission.")
-    p.add_argument("mission", help="mission YAML (e.g. missions/line.yaml, the report's tuning run)")
+    p.add_argument("mission", help=MISSION_HELP + "; the report's tuning run is missions/line.yaml")
+    add_plan_options(p)
     add_controller_options(p)
     g = p.add_argument_group("swarm")
     g.add_argument("--particles", type=count(MAX_PARTICLES), default=defaults.particles,
@@ -117,7 +121,7 @@ def write_gains(path: Path, settings: ControllerSettings, header: str) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    mission = load_mission(args.mission)
+    mission = load_mission(args)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
     out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
