@@ -80,6 +80,7 @@ def _table(names: Names) -> list[Spec]:
         Spec("FS_PILOT_INPUT", 2, INT8),
         Spec("FS_PILOT_TIMEOUT", 3.0, REAL32),
         Spec("BATT_CAPACITY", 18000, INT32),
+        Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run
     ]
     for channel in range(CHANNELS):
         specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]

@@ -20,12 +20,15 @@ from sim_bridge.ardusub import (
     MAV_RESULT_UNSUPPORTED,
     ArduSub,
 )
+from sim_bridge.missions import MissionProtocol
 from sim_bridge.params import STREAM_GROUPS, Params
 from sim_bridge.schedule import Scheduler
 from sim_bridge.signing import ARMED_REFUSAL, VehicleSigning
 from sim_bridge.telemetry import ENCODER, Snapshot
 
 Reply = tuple[object, bool]
+MISSION_MESSAGES = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT",
+                    "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK")
 FORCE_ARM = 21196
 FTP_ACK, FTP_NAK = 128, 129
 FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
@@ -33,12 +36,14 @@ FTP_ERR_UNKNOWN_COMMAND, FTP_ERR_FILE_NOT_FOUND = 7, 10
 
 
 class Protocol:
-    """Dispatches incoming messages to the vehicle, the parameters and the link's scheduler."""
+    """Dispatches incoming messages to the vehicle, the parameters, the stored mission and the link's scheduler."""
 
     def __init__(self, vehicle: ArduSub, params: Params, snapshot: Callable[[], Snapshot],
-                 on_params_changed: Callable[[float], None], signing: VehicleSigning | None = None):
+                 on_params_changed: Callable[[float], None], missions: MissionProtocol,
+                 signing: VehicleSigning | None = None):
         self.vehicle = vehicle
         self.params = params
+        self.missions = missions
         self.snapshot = snapshot
         self.on_params_changed = on_params_changed
         self.signing = signing
@@ -75,6 +80,8 @@ class Protocol:
             return [(self._ftp_refusal(msg), False)]
         elif kind == "SETUP_SIGNING" and self.signing is not None:
             self._setup_signing(msg, channel)
+        elif kind in MISSION_MESSAGES:
+            return self.missions.handle(msg, channel, t)
         return []
 
     def _setup_signing(self, msg, channel: int) -> None:

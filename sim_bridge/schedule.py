@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 STREAMS = {
     "RAW_SENS": ("SCALED_PRESSURE2",),
-    "EXT_STAT": ("SYS_STATUS",),
+    "EXT_STAT": ("SYS_STATUS", "MISSION_CURRENT"),
     "RC_CHAN": ("SERVO_OUTPUT_RAW", "RC_CHANNELS"),
     "POSITION": ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     "EXTRA1": ("ATTITUDE",),

@@ -24,6 +24,7 @@ from sim_bridge.ardusub import ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.config import BridgeConfig
 from sim_bridge.link import Link, open_links
+from sim_bridge.missions import MissionProtocol
 from sim_bridge.pacing import Pacer
 from sim_bridge.params import Params
 from sim_bridge.physics import Physics
@@ -57,7 +58,9 @@ class Bridge:
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
         self.physics = Physics(self.vehicle, plant, battery, load_t200(), config.step)
         self.signing = VehicleSigning(config.signing_key, time.time())
-        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.signing)
+        self.missions = MissionProtocol(lambda: config.origin)
+        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.missions,
+                                 self.signing)
         self.links: list[Link] = []
         self.schedulers: list[Scheduler] = []
         self.steps = 0
@@ -150,7 +153,8 @@ class Bridge:
             throttle=float(self.sub.pilot_axes()[3]) if self.sub.armed else 0.0,
             voltage=battery.voltage, current=battery.current, consumed_ah=battery.consumed_ah,
             remaining=battery.remaining, origin=self.config.origin, water_density=self.vehicle.water_density,
-            gravity=self.vehicle.gravity, unix_start=self.unix_start, firmware=self.params.firmware)
+            gravity=self.vehicle.gravity, unix_start=self.unix_start, firmware=self.params.firmware,
+            mission_count=len(self.missions.items))
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:
@@ -187,6 +191,10 @@ class Bridge:
             for name in scheduler.due(t):
                 snap = snap or self.snapshot()
                 link.send(telemetry.BUILDERS[name](snap))
+        for channel, msg in self.missions.update(t):
+            for link in self.links:
+                if link.channel == channel:
+                    link.send(msg)
 
     def _receive(self) -> None:
         t = self.t

@@ -26,7 +26,9 @@ SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR
            | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY)
 HEALTH = SENSORS | mavlink.MAV_SYS_STATUS_GEOFENCE   # no fence, and so no breach
 CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-                | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+                | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+                | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
+MISSION_STATE_NO_MISSION, MISSION_STATE_NOT_STARTED = 1, 2   # MISSION_STATE (common.xml)
 
 
 @dataclass
@@ -51,6 +53,7 @@ class Snapshot:
     gravity: float
     unix_start: float                    # wall-clock epoch (s) of simulated time 0
     firmware: str
+    mission_count: int = 0               # items of the stored mission, home's slot included
 
     @property
     def ms(self) -> int:
@@ -146,6 +149,13 @@ def autopilot_version(s: Snapshot):
     return ENCODER.autopilot_version_encode(CAPABILITIES, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0)
 
 
+def mission_current(s: Snapshot):
+    """As ArduSub streams it: item 0 current, total = items past home, no mission until one is stored past home,
+    else not started (this vehicle has no AUTO mode to run it)."""
+    state = MISSION_STATE_NO_MISSION if s.mission_count <= 1 else MISSION_STATE_NOT_STARTED
+    return ENCODER.mission_current_encode(0, max(s.mission_count - 1, 0), state, 0)
+
+
 def home_position(s: Snapshot):
     lat0, lon0, alt0 = s.origin
     return ENCODER.home_position_encode(round(lat0 * 1e7), round(lon0 * 1e7), round(alt0 * 1000), 0.0, 0.0, 0.0,
@@ -167,5 +177,6 @@ BUILDERS = {
     "SYSTEM_TIME": system_time,
     "AUTOPILOT_VERSION": autopilot_version,
     "HOME_POSITION": home_position,
+    "MISSION_CURRENT": mission_current,
 }
 NAME_OF_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in BUILDERS}

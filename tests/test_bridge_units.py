@@ -14,6 +14,7 @@ from sim_bridge import mixer
 from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.joystick import joystick_gain, rc_channels
+from sim_bridge.missions import MissionProtocol
 from sim_bridge.pacing import LatenessHistogram, Pacer
 from sim_bridge.params import INT8, INT16, REAL32, Params, stored_value
 from sim_bridge.physics import Physics
@@ -300,7 +301,8 @@ def protocol():
     sub = ArduSub(params)
     scheduler = Scheduler(("HEARTBEAT", "ATTITUDE", "AUTOPILOT_VERSION"), lambda g: params.stream_rate(0, g))
     changed = []
-    proto = Protocol(sub, params, snapshot=lambda: None, on_params_changed=changed.append)
+    proto = Protocol(sub, params, snapshot=lambda: None, on_params_changed=changed.append,
+                     missions=MissionProtocol(lambda: (0.0, 0.0, 0.0)))
     return proto, sub, params, scheduler, changed
 
 
