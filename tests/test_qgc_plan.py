@@ -130,6 +130,16 @@ def test_the_shipped_survey_plan_is_the_shipped_yaml_survey(tmp_path):
     assert plan_points.shape == yaml_points.shape == (8, 3)
     assert np.abs(plan_points - yaml_points).max() < 0.005       # 5 mm: the plan stores 1e-9 degrees
     assert plan.limits.max_depth is None and not np.any(plan.environment.current)   # a plan alone: still water
+    # named from a YAML with the YAML survey's ramps, environment and limits, the plan is that mission: the turns in
+    # place the conversion adds (90 deg at 15 deg/s) are the YAML's 6 s holds
+    side = tmp_path / "dive.yaml"
+    side.write_text(f"name: dive\nplan: {MISSIONS / 'under_ice_survey.plan'}\nramp_time: 3.0\n"
+                    f"environment: {{current: [0.04, 0.03, 0.0]}}\nlimits: {{max_depth: 10.0}}\n")
+    named = load(side)
+    assert named.duration == pytest.approx(yaml.duration, abs=0.01)
+    t = np.arange(0.0, yaml.duration, 0.1)
+    difference = named.reference(t) - yaml.reference(t)
+    assert np.abs(difference[:, :6]).max() < 0.005 and np.abs(difference[:, 6:]).max() < 0.001
 
 
 @pytest.mark.parametrize("items,options,expected", [
