@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import MISSIONS
 from plan_helpers import (
+    DO_CHANGE_SPEED,
     HOME,
     NAV_TAKEOFF,
     haversine,
@@ -110,6 +111,23 @@ def test_survey_flies_the_waypoints_qgc_stored_in_it(tmp_path):
     assert all(t[2] == pytest.approx(6.0) for t in targets)
 
 
+def test_a_corridor_scan_flies_its_stored_waypoints_and_change_speed_applies_after_it(tmp_path):
+    lanes = [((47.3977419, 8.545594), (47.3979219, 8.545594)), ((47.3979219, 8.5456472), (47.3977419, 8.5456472))]
+    corridor = survey(1, lanes, depth=3.0)
+    corridor.update(complexItemType="CorridorScan", CorridorWidth=4, EntryPoint=0, version=3,
+                    polyline=[[47.3977419, 8.5456206], [47.3979219, 8.5456206]])
+    for key in ("angle", "entryLocation", "flyAlternateTransects", "polygon", "splitConcavePolygons"):
+        del corridor[key]
+    items = [waypoint(1, *CORNERS[0], -3.0), simple_item(2, DO_CHANGE_SPEED, [1, 0.15, -1, 0, 0, 0, 0], frame=2),
+             corridor]
+    mission = load(write_plan(tmp_path / "corridor.plan", items, cruise_speed=0.3))
+    assert len(_targets(mission)) == 4      # the first waypoint is the corridor's entry: no leg to it, no stop
+    legs = [seg for seg in mission.segments if np.linalg.norm(seg.p1[:3] - seg.p0[:3]) > 0]
+    for seg in legs:                                   # every leg after DO_CHANGE_SPEED flies at 0.15 m/s
+        t = np.linspace(seg.t0, seg.t0 + seg.duration, 400)
+        assert np.hypot(*mission.reference(t)[:, 6:9].T).max() == pytest.approx(0.15, rel=1e-6)
+
+
 def test_a_survey_with_camera_triggers_is_refused_or_flown_without_them(tmp_path):
     lanes = [((47.3977419, 8.545594), (47.3979219, 8.545594)), ((47.3979219, 8.5456472), (47.3977419, 8.5456472))]
     path = write_plan(tmp_path / "camera.plan", [survey(1, lanes, depth=3.0, trigger_distance=5.0)])
@@ -156,6 +174,9 @@ def test_the_shipped_survey_plan_is_the_shipped_yaml_survey(tmp_path):
      "--plan-speed: speed 15 m/s is beyond what a BlueROV2 Heavy flies"),
     ([waypoint(1, *CORNERS[0], -2.0), waypoint(2, 47.5, 8.545594, -2.0)], PlanOptions(),
      "mission.items[1] (NAV_WAYPOINT): 11.4 km from the origin"),
+    ([waypoint(1, *CORNERS[0], -2.0), {"type": "ComplexItem", "complexItemType": "StructureScan", "version": 3,
+                                       "polygon": [list(c) for c in CORNERS], "Layers": 1}], PlanOptions(),
+     "cannot fly mission.items[1] (StructureScan complex item: QGC stores no waypoints in it)"),
 ])
 def test_plans_we_must_refuse_are_refused_naming_the_item(tmp_path, items, options, expected):
     path = write_plan(tmp_path / "bad.plan", items)
