@@ -246,3 +246,12 @@ def test_simulate_flies_the_shipped_survey_plan(tmp_path):
     assert metrics["completed"] and metrics["duration_s"] == pytest.approx(mission.duration, abs=0.02)
     assert metrics["max_position_error_m"] < 0.05
     assert (tmp_path / "fig" / "path3d.png").exists()
+
+
+@pytest.mark.parametrize("args", [["--mission-from-vehicle"], [], ["x.plan", "--mission-from-vehicle",
+                                                                    "--target", "udp:127.0.0.1:14550"]])
+def test_run_wants_one_mission_source_and_a_vehicle_to_download_from(tmp_path, args):
+    r = _cli("run", *args, "--rerun", "off", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip() == ("rov-mav run: error: give a mission file, or --mission-from-vehicle with --target "
+                                "(the built-in vehicle starts with no mission)")
