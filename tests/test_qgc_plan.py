@@ -221,8 +221,8 @@ def test_a_refused_plan_stops_every_command_before_anything_starts(tmp_path, com
     r = _cli(command, str(path), "--rerun", "off", cwd=tmp_path)
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [
-        f"rov-mav: error: {path}: mission.items[1] (NAV_WAYPOINT): altitude +1.5 m is above the surface: ArduSub "
-        f"reads an altitude relative to home, the surface, so 1.5 m deep is -1.5"]
+        f"rov-mav {command}: error: {path}: mission.items[1] (NAV_WAYPOINT): altitude +1.5 m is above the surface: "
+        f"ArduSub reads an altitude relative to home, the surface, so 1.5 m deep is -1.5"]
     assert "Traceback" not in r.stderr and "built-in vehicle" not in r.stdout
     assert not (tmp_path / "out").exists()                     # nothing half-written
 

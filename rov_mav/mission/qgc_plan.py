@@ -70,14 +70,14 @@ def load_plan_file(path: str | Path, data: dict[str, Any], options: PlanOptions 
 
 
 def read_json(path: Path) -> Any:
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise config.ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    """The JSON in a small text file, read the guarded way every configuration file is (`config.read_text`)."""
+    text = config.read_text(path, "JSON")
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise config.ConfigError(f"{path} (line {exc.lineno}): invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise config.ConfigError(f"{path}: invalid JSON: nested too deep") from None
 
 
 def parse_plan(data: Any, source: str, name: str, extra: dict | None = None) -> Planned:
