@@ -8,6 +8,8 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 - MANUAL_CONTROL (ArduSub 4.5, ArduSub/GCS_Mavlink.cpp): only from the GCS sysid and with `target` equal to this
   vehicle's sysid (0 is not accepted); its axes become overrides of channels 1-11 (`joystick`) with the same expiry,
   and it counts as pilot input and as a GCS heartbeat. Buttons are ignored (no arming, modes, lights or trims).
+- The software safety switch (a mode change with base_mode 128, custom mode 1 on, 0 off): while on, every output reads
+  0 and sends no pulse, armed or not (measured on ArduSub 4.5.3 SITL). A BlueROV2 boots with it off.
 - The vehicle's own sysid is fixed at boot (ArduPilot applies SYSID_THISMAV / MAV_SYSID on reboot: measured).
 - SERVOn_FUNCTION 51..66 (RCIN1..16) passes RC input n straight to output n, whether armed or not, without motor
   directions; with no RC receiver the output keeps its last value after the override ends.
@@ -33,6 +35,7 @@ from sim_bridge.stabilize import ASSISTED, Holds
 
 MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRCLE": 7, "SURFACE": 9,
          "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
+MODE_NAMES = {number: name for name, number in MODES.items()}
 SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL")})
 GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 
@@ -67,6 +70,7 @@ class ArduSub:
         self.rc = RCInput()
         self.mode = MODES["MANUAL"]
         self.armed = False
+        self.safety_on = False            # no safety switch on a BlueROV2: outputs flow from boot
         self.failsafe_gcs = False
         self.failsafe_pilot = False
         self.texts: list[tuple[int, str]] = []
@@ -117,14 +121,21 @@ class ArduSub:
         return MAV_RESULT_ACCEPTED
 
     def set_mode(self, custom_mode: int) -> bool:
-        """Change mode; False (and a warning) for a mode this vehicle cannot enter."""
+        """Change mode (ArduSub/mode.cpp, `Sub::set_mode`); False and a warning for a mode ArduSub does not have or
+        this vehicle cannot enter."""
         if custom_mode not in SUPPORTED_MODES:
-            self.texts.append((MAV_SEVERITY_WARNING, f"Flight mode change failed: {custom_mode}"))
+            name = MODE_NAMES.get(custom_mode)
+            self.texts.append((MAV_SEVERITY_WARNING, f"No such mode {custom_mode}" if name is None else
+                               f"Flight mode change failed {name}"))
             return False
         if custom_mode != self.mode:
             self.holds.reset()
         self.mode = custom_mode
         return True
+
+    def set_safety(self, on: bool) -> None:
+        """The software safety switch (`hal.rcout->force_safety_on/off`): while on, no output sends a pulse."""
+        self.safety_on = on
 
     # -- time ------------------------------------------------------------------------------------------------
 
@@ -209,7 +220,8 @@ class ArduSub:
         return np.array([-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION])
 
     def servo_outputs(self) -> np.ndarray:
-        """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs)."""
+        """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs; all 0 with the safety on,
+        as measured on ArduSub 4.5.3 SITL)."""
         if self._routing_version != self.params.version:
             functions = np.array([int(self.params[name]) for name in _SERVO_FUNCTION])
             self._motor = (functions >= MOTOR1) & (functions <= MOTOR8)
@@ -218,6 +230,8 @@ class ArduSub:
             self._rcin_index = functions[self._rcin] - RCIN1
             self._routing_version = self.params.version
         out = np.zeros(SERVOS, dtype=np.int32)
+        if self.safety_on:
+            return out
         out[self._motor] = self.motor_pwm()[self._motor_index]
         out[self._rcin] = self.rc.radio_in[self._rcin_index]
         return np.clip(out, 0, UINT16_MAX, out=out)

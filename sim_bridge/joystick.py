@@ -11,8 +11,8 @@ Source: ArduSub/joystick.cpp, `Sub::init_joystick` (the gain, fixed at boot) and
     ch7 camera pan 1500, ch8 camera tilt 1500, ch9 lights 1 = RC9_MIN, ch10 lights 2 = RC10_MIN (at boot), ch11 video
     switch 1100
 
-in float32, converted to int16 (truncated toward zero, then wrapped modulo 2^16 as GCC does; a float beyond int32 is
-undefined in C++, here it saturates to int32 first) and only then clamped to 1100-1900. So a joystick at rest (x = y = r = 0, z = 500) puts
+in float32, converted to int16 (`numeric.float_to_int`: truncated toward zero, saturated to int32, then the low 16
+bits) and only then clamped to 1100-1900. So a joystick at rest (x = y = r = 0, z = 500) puts
 1500 on channels 1-8. Measured on the 4.5.3 SITL binary: gain 0.5 by default; x=400, y=-200, z=700, r=100 gave
 1500, 1500, 1580, 1520, 1580, 1460, 1500, 1500, 1100, 1100, 1100; x=-1 gave 1499 on channel 5 (truncation); s=100,
 t=-200 gave 1600 and 1300 on channels 1 and 2; a MANUAL_CONTROL replaced an RC_CHANNELS_OVERRIDE of 7-11.
@@ -21,6 +21,8 @@ t=-200 gave 1600 and 1300 on channels 1 and 2; a MANUAL_CONTROL replaced an RC_C
 from __future__ import annotations
 
 import numpy as np
+
+from sim_bridge.numeric import float_to_int
 
 CHANNELS = 11
 PWM_LOW, PWM_HIGH = 1100, 1900
@@ -40,14 +42,8 @@ def joystick_gain(default: float, low: float, high: float, steps: int) -> float:
     return float(_F32(min(max(gain, 0.1), 1.0)))
 
 
-def _int16(value) -> int:
-    """C++'s conversion to int16_t on ArduPilot's compilers: truncate, keep the low 16 bits."""
-    whole = int(min(max(np.trunc(value), -2**31), 2**31 - 1))
-    return (whole + 32768) % 65536 - 32768
-
-
 def _pwm(value) -> int:
-    return min(max(_int16(value), PWM_LOW), PWM_HIGH)
+    return min(max(float_to_int(value, 16), PWM_LOW), PWM_HIGH)
 
 
 def rc_channels(x: int, y: int, z: int, r: int, s: int, t: int, gain: float, throttle_gain: float,
@@ -55,7 +51,7 @@ def rc_channels(x: int, y: int, z: int, r: int, s: int, t: int, gain: float, thr
     """The 11 override values (channels 1..11, us) of one MANUAL_CONTROL's axes."""
     rpy = _F32(0.4 * gain)
     throttle = _F32(0.8 * gain * throttle_gain)
-    base = _int16(_F32(CENTER - 500 * throttle))
+    base = float_to_int(_F32(CENTER - 500 * throttle), 16)
     return [_pwm(s + CENTER), _pwm(t + CENTER),
             _pwm(_F32(z) * throttle + base), _pwm(_F32(r) * rpy + CENTER),
             _pwm(_F32(x) * rpy + CENTER), _pwm(_F32(y) * rpy + CENTER),

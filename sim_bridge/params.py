@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
+from sim_bridge.numeric import f32, float_to_int
 
 INT8, INT16, INT32, REAL32 = 2, 4, 6, 9          # MAV_PARAM_TYPE
 _LIMITS = {INT8: (-128, 127), INT16: (-32768, 32767), INT32: (-2**31, 2**31 - 1)}
+_ROUNDING = f32(0.01)
 
 FIRMWARES = ("4.5", "4.7")
 DEFAULT_FIRMWARE = "4.7"
@@ -93,14 +94,16 @@ def _table(names: Names) -> list[Spec]:
 
 
 def stored_value(value: float, ptype: int) -> float:
-    """The value ArduPilot stores for a PARAM_SET of `value`: a float32, or an integer rounded half-away-ish and
-    saturated (ArduPilot adds 0.01 away from zero and truncates, then clamps to the storage type; documented ranges
-    are not enforced). A finite value beyond float32 becomes infinite here, and `Params.set` refuses it."""
-    if ptype == REAL32:
-        return float(np.float32(value))
+    """The value ArduPilot stores for a PARAM_SET of `value` (libraries/AP_Param/AP_Param.cpp, `set_float`): a
+    float32; or, for an integer type, in float32 arithmetic, 0.01 added away from zero, clamped to the type's limits
+    and truncated (documented ranges are not enforced). A finite value beyond float32 becomes infinite here, and
+    `Params.set` refuses it."""
+    value = f32(value)
+    if ptype == REAL32 or not math.isfinite(value):
+        return value
     low, high = _LIMITS[ptype]
-    nudged = value + (0.01 if value >= 0 else -0.01)
-    return float(int(min(max(nudged, low), high)))
+    nudged = f32(value + (_ROUNDING if value >= 0 else -_ROUNDING))
+    return float(float_to_int(f32(min(max(nudged, low), high))))
 
 
 class Params:
@@ -131,8 +134,7 @@ class Params:
         NaN or infinity (libraries/GCS_MAVLink/GCS_Param.cpp, `handle_param_set`) and values beyond float32."""
         if name not in self._index or not math.isfinite(value):
             return None
-        with np.errstate(over="ignore"):
-            stored = stored_value(value, self.specs[self._index[name]].ptype)
+        stored = stored_value(value, self.specs[self._index[name]].ptype)
         if not math.isfinite(stored):
             return None
         self._values[name] = stored

@@ -6,7 +6,6 @@ every link (PARAM_VALUE after a PARAM_SET), False only back on the link the requ
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Callable
 
@@ -21,6 +20,7 @@ from sim_bridge.ardusub import (
     ArduSub,
 )
 from sim_bridge.missions import MissionProtocol
+from sim_bridge.numeric import float_to_int, is_equal, is_zero, wrap
 from sim_bridge.params import STREAM_GROUPS, Params
 from sim_bridge.schedule import Scheduler
 from sim_bridge.signing import ARMED_REFUSAL, VehicleSigning
@@ -29,7 +29,8 @@ from sim_bridge.telemetry import ENCODER, Snapshot
 Reply = tuple[object, bool]
 MISSION_MESSAGES = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT",
                     "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK")
-FORCE_ARM = 21196
+MAV_SEVERITY_INFO = 6
+UINT16_MAX = 65535
 FTP_ACK, FTP_NAK = 128, 129
 FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
 FTP_ERR_UNKNOWN_COMMAND, FTP_ERR_FILE_NOT_FOUND = 7, 10
@@ -96,52 +97,78 @@ class Protocol:
     # -- commands --------------------------------------------------------------------------------------------
 
     def _command(self, msg, scheduler: Scheduler, t: float) -> list[Reply]:
-        replies: list[Reply] = []
-        cmd = msg.command
-        if not all(math.isfinite(p) for p in (msg.param1, msg.param2)):
-            result = MAV_RESULT_DENIED          # NaN or infinite where a mode, message id or interval belongs
-        elif cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            if msg.param1 in (0.0, 1.0):
-                result = self.vehicle.arm(msg.param1 == 1.0)
-            else:
-                result = MAV_RESULT_UNSUPPORTED
+        """COMMAND_LONG and COMMAND_INT alike (ArduPilot runs a COMMAND_LONG as a COMMAND_INT:
+        `GCS_MAVLINK::try_command_long_as_command_int`), each parameter cast as GCS_Common.cpp casts it; the
+        COMMAND_ACK follows a MESSAGE_INTERVAL answer and precedes a requested message, as ArduSub sends them."""
+        cmd, p1, p2 = msg.command, msg.param1, msg.param2
+        before: list[Reply] = []
+        after: list[Reply] = []
+        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            result = self._arm_disarm(p1)
         elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
-            result = self._set_mode(int(msg.param1), int(msg.param2))
+            result = self._set_mode(float_to_int(p1), float_to_int(p2, signed=False))
         elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
-            name = telemetry.NAME_OF_ID.get(_message_id(msg.param1))
-            result = MAV_RESULT_DENIED if name is None else MAV_RESULT_ACCEPTED
-            if name is not None:
-                scheduler.set_interval(name, msg.param2, t)
+            result = self._set_interval(float_to_int(p1, signed=False), float_to_int(p2), scheduler, t)
         elif cmd == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
-            result, reply = self._get_interval(_message_id(msg.param1), scheduler)
-            replies.append((reply, False))
-        elif cmd in (mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
-            msg_id = _message_id(msg.param1) if cmd == mavlink.MAV_CMD_REQUEST_MESSAGE else \
-                mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
-            name = telemetry.NAME_OF_ID.get(msg_id)
-            result = MAV_RESULT_FAILED if name is None else MAV_RESULT_ACCEPTED
-            if name is not None:
-                replies.append((telemetry.BUILDERS[name](self.snapshot()), False))
+            result, reply = self._get_interval(float_to_int(p1, signed=False), scheduler)
+            before.append((reply, False))
+        elif cmd == mavlink.MAV_CMD_REQUEST_MESSAGE:
+            result, after = self._request_message(float_to_int(p1, signed=False))
+        elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            result, after = (self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) if is_equal(p1, 1.0)
+                             else (MAV_RESULT_FAILED, []))
         else:
             result = MAV_RESULT_UNSUPPORTED
         ack = ENCODER.command_ack_encode(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
-        return [(ack, False)] + replies
+        return before + [(ack, False)] + after
 
-    @staticmethod
-    def _get_interval(msg_id: int | None, scheduler: Scheduler):
-        """`GCS_MAVLINK::handle_command_get_message_interval`: (MAV_RESULT, MESSAGE_INTERVAL); interval 0 = not
-        available (FAILED, also for ids past uint16), -1 = not sent, else the interval in us."""
+    def _arm_disarm(self, param1: float) -> int:
+        """`GCS_MAVLINK::handle_command_component_arm_disarm`: param1 equal to 1 (within float32's epsilon) arms,
+        zero disarms, anything else (NaN too) is UNSUPPORTED. No pre-arm checks here, so forcing changes nothing."""
+        if is_equal(param1, 1.0):
+            return self.vehicle.arm(True)
+        if is_zero(param1):
+            return self.vehicle.arm(False)
+        return MAV_RESULT_UNSUPPORTED
+
+    def _set_interval(self, msg_id: int, interval_us: int, scheduler: Scheduler, t: float) -> int:
+        """`GCS_MAVLINK::set_message_interval`: DENIED, with ArduPilot's notice, for a message this vehicle does not
+        send."""
         name = telemetry.NAME_OF_ID.get(msg_id)
         if name is None:
-            return MAV_RESULT_FAILED, ENCODER.message_interval_encode((msg_id or 0) & 0xFFFF, 0)
+            self.vehicle.texts.append((MAV_SEVERITY_INFO, f"No ap_message for mavlink id ({msg_id})"))
+            return MAV_RESULT_DENIED
+        scheduler.set_interval(name, interval_us, t)
+        return MAV_RESULT_ACCEPTED
+
+    @staticmethod
+    def _get_interval(msg_id: int, scheduler: Scheduler):
+        """`GCS_MAVLINK::handle_command_get_message_interval`: (MAV_RESULT, MESSAGE_INTERVAL); interval 0 = not
+        available (FAILED, also for ids past uint16, reported truncated), -1 = not sent, else the interval in us."""
+        name = telemetry.NAME_OF_ID.get(msg_id)
+        if name is None:
+            return MAV_RESULT_FAILED, ENCODER.message_interval_encode(msg_id & 0xFFFF, 0)
         interval = scheduler.intervals[name]
         return MAV_RESULT_ACCEPTED, ENCODER.message_interval_encode(msg_id, round(interval * 1e6) if interval else -1)
 
+    def _request_message(self, msg_id: int) -> tuple[int, list[Reply]]:
+        """`GCS_MAVLINK::handle_command_request_message`: the message once, or FAILED for one this vehicle does not
+        send."""
+        name = telemetry.NAME_OF_ID.get(msg_id)
+        if name is None:
+            return MAV_RESULT_FAILED, []
+        return MAV_RESULT_ACCEPTED, [(telemetry.BUILDERS[name](self.snapshot()), False)]
+
     def _set_mode(self, base_mode: int, custom_mode: int) -> int:
-        """ArduPilot's answer to a mode change: custom modes only; FAILED for a mode it cannot enter."""
-        if not base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            return MAV_RESULT_DENIED
-        return MAV_RESULT_ACCEPTED if self.vehicle.set_mode(custom_mode) else MAV_RESULT_FAILED
+        """`GCS_MAVLINK::_set_mode_common`: with the custom-mode flag, the custom mode as the uint8_t
+        `Sub::set_mode` takes (FAILED if it cannot be entered); base_mode 128 alone works the safety switch (custom
+        mode 0 off, 1 on, else DENIED); anything else is DENIED."""
+        if (base_mode & 0xFFFFFFFF) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return MAV_RESULT_ACCEPTED if self.vehicle.set_mode(custom_mode & 0xFF) else MAV_RESULT_FAILED
+        if base_mode == mavlink.MAV_MODE_FLAG_DECODE_POSITION_SAFETY and custom_mode in (0, 1):
+            self.vehicle.set_safety(custom_mode == 1)
+            return MAV_RESULT_ACCEPTED
+        return MAV_RESULT_DENIED
 
     # -- parameters ------------------------------------------------------------------------------------------
 
@@ -151,21 +178,23 @@ class Protocol:
                                           index if reported_index is None else reported_index)
 
     def _param_read(self, msg) -> list[Reply]:
-        """By index unless the index is -1 (then by name), as `GCS_MAVLINK::handle_param_request_read`; no reply
+        """By index unless the index is -1 (then by name, answered with index -1 as 65535: ArduPilot echoes the
+        request's index, measured on ArduSub 4.5.3 SITL), as `GCS_MAVLINK::handle_param_request_read`; no reply
         when there is no such parameter."""
         if msg.param_index != -1:
-            index = msg.param_index if 0 <= msg.param_index < len(self.params) else None
-        else:
-            name = _param_name(msg.param_id)
-            index = self.params.index(name) if name in self.params else None
-        return [] if index is None else [(self._param_value(index), False)]
+            if 0 <= msg.param_index < len(self.params):
+                return [(self._param_value(msg.param_index), False)]
+            return []
+        name = _param_name(msg.param_id)
+        return [(self._param_value(self.params.index(name), reported_index=UINT16_MAX), False)] \
+            if name in self.params else []
 
     def _param_set(self, msg, t: float) -> list[Reply]:
         name = _param_name(msg.param_id)
         if self.params.set(name, msg.param_value) is None:
             return []
         self.on_params_changed(t)
-        return [(self._param_value(self.params.index(name), reported_index=65535), True)]
+        return [(self._param_value(self.params.index(name), reported_index=UINT16_MAX), True)]
 
     def _request_data_stream(self, msg, channel: int, t: float) -> None:
         """`GCS_MAVLINK::handle_request_data_stream`: start_stop 1 sets the rate (uint16 read as int16), 0 sets 0,
@@ -174,7 +203,7 @@ class Protocol:
             return
         groups = tuple(g for g in STREAM_GROUPS if g != "PARAMS") if msg.req_stream_id == 0 else \
             schedule.DATA_STREAM_GROUPS.get(msg.req_stream_id, ())
-        rate = (msg.req_message_rate + 32768) % 65536 - 32768 if msg.start_stop else 0
+        rate = wrap(msg.req_message_rate, 16) if msg.start_stop else 0
         for group in groups:
             self.params.set(self.params.names.stream(channel, group), rate)
         self.on_params_changed(t)
@@ -203,11 +232,6 @@ def addressed_here(msg, sysid: int, compid: int = 1) -> bool:
         return False
     target = msg.target if msg.get_type() == "MANUAL_CONTROL" else getattr(msg, "target_system", 0)
     return target in (0, sysid) and getattr(msg, "target_component", 0) in (0, compid)
-
-
-def _message_id(value: float) -> int | None:
-    """A command's float param as a MAVLink message id (None outside uint32, where C's conversion is undefined)."""
-    return int(value) if 0 <= value < 2**32 else None
 
 
 def _param_name(raw) -> str:

@@ -28,7 +28,6 @@ DATA_STREAM_GROUPS = {1: ("RAW_SENS",), 2: ("EXT_STAT",), 3: ("RC_CHAN",), 4: ("
                       10: ("EXTRA1",), 11: ("EXTRA2",), 12: ("EXTRA3",)}
 HEARTBEAT_INTERVAL = 1.0
 MAX_INTERVAL_MS = 60000
-INT32_MIN, INT32_MAX = -2**31, 2**31 - 1
 EPS = 1e-9                      # s: tolerance for float sums of intervals against step times
 
 
@@ -51,8 +50,8 @@ class Scheduler:
         group = GROUP_OF.get(name)
         return stream_interval_ms(int(self.stream_rate(group)) if group else 0) / 1000.0
 
-    def set_interval(self, name: str, interval_us: float, t: float) -> None:
-        """MAV_CMD_SET_MESSAGE_INTERVAL's param2 (finite, us): 0 = back to the default, -1 = off, else as ArduPilot."""
+    def set_interval(self, name: str, interval_us: int, t: float) -> None:
+        """MAV_CMD_SET_MESSAGE_INTERVAL's interval (int32 us): 0 = back to the default, -1 = off, else as ArduPilot."""
         ms = requested_interval_ms(interval_us)
         if ms is None:
             self.explicit.pop(name, None)
@@ -92,16 +91,13 @@ def stream_interval_ms(rate: int) -> int:
     return min(ms, MAX_INTERVAL_MS)
 
 
-def requested_interval_ms(interval_us: float) -> int | None:
-    """`GCS_MAVLINK::set_message_interval` on a finite param2: the interval in ms (0 = off), None = the default.
-
-    The float is converted to int32 saturating, as Pixhawk's ARM FPU does (the x86 SITL build traps on an
-    out-of-range conversion and aborts: measured on ArduSub 4.5.3 SITL with 3.6e9)."""
-    us = int(min(max(interval_us, INT32_MIN), INT32_MAX))
-    if us == 0:
+def requested_interval_ms(interval_us: int) -> int | None:
+    """`GCS_MAVLINK::set_message_interval` on an int32 interval in us: the interval in ms (0 = off), None = the
+    default."""
+    if interval_us == 0:
         return None
-    if us == -1:
+    if interval_us == -1:
         return 0
-    if us < 1000:
+    if interval_us < 1000:
         return 1
-    return min(us // 1000, MAX_INTERVAL_MS)
+    return min(interval_us // 1000, MAX_INTERVAL_MS)

@@ -33,7 +33,7 @@ MISSION_STATE_NO_MISSION, MISSION_STATE_NOT_STARTED = 1, 2   # MISSION_STATE (co
 
 @dataclass
 class Snapshot:
-    """What the telemetry reports at one instant. Arrays: eta, nu (6,), servo (16,), rc_in (18,)."""
+    """What the telemetry reports at one instant. Arrays: eta, nu (6,), servo (16,), rc_in (16,)."""
 
     t_us: int                            # simulated time since boot, microseconds (exact: steps x step)
     eta: np.ndarray
@@ -124,7 +124,8 @@ def servo_output_raw(s: Snapshot):
 
 
 def rc_channels(s: Snapshot):
-    return ENCODER.rc_channels_encode(s.ms, len(s.rc_in), *map(int, s.rc_in), 255)
+    values = [*map(int, s.rc_in), 0, 0]            # channels 17 and 18 do not exist in ArduPilot
+    return ENCODER.rc_channels_encode(s.ms, len(s.rc_in), *values, 255)
 
 
 def sys_status(s: Snapshot):

@@ -152,12 +152,20 @@ class Gcs:
                             lambda m: m.param_id == name and m.param_index == 65535)
 
     def get_param(self, name: str):
-        """PARAM_REQUEST_READ and its answer (which has the parameter's index; a PARAM_SET's echo has 65535)."""
+        """PARAM_REQUEST_READ by name and its answer (index 65535, as a PARAM_SET's echo: ArduSub echoes the
+        request's -1)."""
         return self.request(lambda: self.send("param_request_read", 1, 1, name.encode(), -1), "PARAM_VALUE",
-                            lambda m: m.param_id == name and m.param_index != 65535)
+                            lambda m: m.param_id == name)
 
     def set_interval(self, msg_id: int, hz: float):
         return self.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz)
+
+    def get_interval(self, msg_id: int):
+        """MAV_CMD_GET_MESSAGE_INTERVAL's answers (MESSAGE_INTERVAL, COMMAND_ACK), in the order ArduSub sends them."""
+        cmd = mavutil.mavlink.MAV_CMD_GET_MESSAGE_INTERVAL
+        interval = self.request(lambda: self.send("command_long", 1, 1, cmd, 0, msg_id, 0, 0, 0, 0, 0, 0),
+                                "MESSAGE_INTERVAL", lambda m: m.message_id == msg_id & 0xFFFF)
+        return interval, self.recv("COMMAND_ACK", cond=lambda m: m.command == cmd)
 
     # -- receiving -------------------------------------------------------------------------------------------
 

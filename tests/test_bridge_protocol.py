@@ -232,8 +232,8 @@ def test_default_rates_and_requested_intervals(gcs):
     assert not [m for m in msgs if m.get_type() == "VFR_HUD"]
     ack = gcs.command(mav.MAV_CMD_SET_MESSAGE_INTERVAL, 9999, 1000)
     assert ack.result == mav.MAV_RESULT_DENIED
-    gcs.command(mav.MAV_CMD_GET_MESSAGE_INTERVAL, mav.MAVLINK_MSG_ID_ATTITUDE)
-    assert gcs.recv("MESSAGE_INTERVAL").interval_us == 20000
+    interval, ack = gcs.get_interval(mav.MAVLINK_MSG_ID_ATTITUDE)
+    assert (interval.interval_us, ack.result) == (20000, mav.MAV_RESULT_ACCEPTED)
 
 
 def test_requested_messages(gcs):

@@ -13,14 +13,17 @@ from rov_mav.model.thrusters import allocation_matrix, load_t200
 from sim_bridge import mixer
 from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
 from sim_bridge.battery import Battery
+from sim_bridge.config import BridgeConfig
 from sim_bridge.joystick import joystick_gain, rc_channels
 from sim_bridge.missions import MissionProtocol
+from sim_bridge.numeric import float_to_int, is_equal, is_zero, wrap
 from sim_bridge.pacing import LatenessHistogram, Pacer
-from sim_bridge.params import INT8, INT16, REAL32, Params, stored_value
+from sim_bridge.params import INT8, INT16, INT32, REAL32, Params, stored_value
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.rc import RCInput
 from sim_bridge.schedule import Scheduler, requested_interval_ms, stream_interval_ms
+from sim_bridge.server import Bridge
 
 GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
 STEP = 0.0025
@@ -59,13 +62,16 @@ def test_param_names_follow_the_firmware():
 def test_param_set_stores_like_ardupilot():
     assert stored_value(51.4, INT16) == 51 and stored_value(-1.5, INT16) == -1 and stored_value(2.996, INT8) == 3
     assert stored_value(1000, INT8) == 127 and stored_value(-1e6, INT16) == -32768
+    # measured on ArduSub 4.5.3 SITL (PARAM_SET of an INT16): float32 arithmetic, 0.01 away from zero, truncated
+    assert [stored_value(v, INT16) for v in (0.99, 2.5, -2.5, 2.49, 1e9, -1e9)] == [1, 2, -2, 2, 32767, -32768]
+    assert stored_value(3e9, INT32) == 2**31 - 1 and stored_value(2147483000, INT32) == 2147483008
     assert stored_value(0.123, REAL32) == float(np.float32(0.123)) != 0.123   # a float32, as on the wire
     p = Params()
     assert p.set("RC_OVERRIDE_TIME", 500.0) == 500.0          # documented range not enforced
     assert p.set("NO_SUCH_PARAM", 1.0) is None
     assert p.set("FS_GCS_TIMEOUT", math.nan) is None and p["FS_GCS_TIMEOUT"] == 5.0
     assert p.set("FS_GCS_TIMEOUT", 1e39) is None and p["FS_GCS_TIMEOUT"] == 5.0   # beyond float32: refused
-    assert p.set("FS_GCS_ENABLE", 1e39) == 127
+    assert p.set("FS_GCS_ENABLE", 1e39) is None and p["FS_GCS_ENABLE"] == 2       # not a float32 either
 
 
 # -- RC input --------------------------------------------------------------------------------------------------
@@ -398,7 +404,7 @@ def test_thrust_lags_the_command_and_maps_to_the_wrench(vehicle):
 
 
 def test_interval_limits_follow_ardupilot():
-    assert [requested_interval_ms(us) for us in (0, -1, -5, 999, 20000, 3.6e9, -3.6e9)] == \
+    assert [requested_interval_ms(us) for us in (0, -1, -5, 999, 20000, 2**31 - 1, -2**31)] == \
         [None, 0, 1, 1, 20, 60000, 1]
     assert [stream_interval_ms(r) for r in (0, 3, 10, 1000, 1001, -25536)] == [0, 333, 100, 1, 0, 60000]
 
@@ -406,12 +412,12 @@ def test_interval_limits_follow_ardupilot():
 def test_hostile_fields_are_clamped_or_refused(protocol):
     proto, sub, params, scheduler, _ = protocol
     proto.handle(decode(GCS.command_long_encode(1, 1, 511, 0, 30, 3.6e9, 0, 0, 0, 0, 0)), 0, scheduler, 0.0)
-    [(ack, _), (interval, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 30, 0, 0, 0, 0, 0, 0)),
+    [(interval, _), (ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 30, 0, 0, 0, 0, 0, 0)),
                                              0, scheduler, 0.0)
     assert (ack.result, interval.message_id, interval.interval_us) == (0, 30, 60_000_000)
-    [(ack, _), (interval, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 70000, 0, 0, 0, 0, 0, 0)),
+    [(interval, _), (ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 510, 0, 70000, 0, 0, 0, 0, 0, 0)),
                                              0, scheduler, 0.0)
-    assert (ack.result, interval.interval_us) == (mavlink.MAV_RESULT_FAILED, 0)
+    assert (ack.result, interval.message_id, interval.interval_us) == (mavlink.MAV_RESULT_FAILED, 70000 - 65536, 0)
     proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 40000, 1)), 6, scheduler, 0.0)
     assert params["MAV4_EXTRA1"] == -25536                      # uint16 read as int16; link 6 uses the last set
     proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 7, 2)), 0, scheduler, 0.0)
@@ -423,6 +429,81 @@ def test_hostile_fields_are_clamped_or_refused(protocol):
     looped = mavlink.MAVLink(None).decode(bytearray(own.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0,
                                                                             0).pack(own)))
     assert proto.handle(looped, 0, scheduler, 0.0) == [] and not sub.armed
+
+
+def test_c_conversions_as_on_arm():
+    assert [float_to_int(v) for v in (3.6e9, -3.6e9, math.nan, math.inf, -7.9, 7.9)] == \
+        [2**31 - 1, -2**31, 0, 2**31 - 1, -7, 7]
+    assert [float_to_int(v, signed=False) for v in (-5.0, 5e9, math.nan, 275.5)] == [0, 2**32 - 1, 0, 275]
+    assert float_to_int(40000.0, 16) == 40000 - 65536 and float_to_int(1e12, 16) == -1   # int32 first, low bits
+    assert wrap(65534, 16) == -2 and wrap(-1, 16, signed=False) == 65535
+    below, above = (float(np.nextafter(np.float32(1), np.float32(x))) for x in (0, 2))
+    assert is_equal(below, 1.0) and not is_equal(above, 1.0) and not is_equal(math.nan, math.nan)
+    assert is_zero(1e-10) and is_zero(-1e-10) and not is_zero(2e-7) and not is_zero(math.nan)
+
+
+def test_commands_cast_their_parameters_as_ardusub_45_sitl(protocol):
+    """Each answer here was measured on ArduSub 4.5.3 SITL (out-of-range casts excepted: those follow ARM)."""
+    proto, sub, _, scheduler, _ = protocol
+
+    def command(number, *params):
+        replies = proto.handle(decode(GCS.command_long_encode(1, 1, number, 0, *params, *[0] * (7 - len(params)))),
+                               0, scheduler, 0.0)
+        return next(r for r, _ in replies if r.get_type() == "COMMAND_ACK").result
+
+    below, above = (float(np.nextafter(np.float32(1), np.float32(x))) for x in (0, 2))
+    assert command(400, above) == mavlink.MAV_RESULT_UNSUPPORTED and not sub.armed
+    assert command(400, below) == mavlink.MAV_RESULT_ACCEPTED and sub.armed      # within float32's epsilon of 1
+    assert command(400, 1e-10) == mavlink.MAV_RESULT_ACCEPTED and not sub.armed  # "zero"
+    assert command(400, math.nan) == command(400, 2) == command(400, -1) == mavlink.MAV_RESULT_UNSUPPORTED
+    assert command(176, 1.5, 275.7) == mavlink.MAV_RESULT_ACCEPTED and sub.mode == MODES["MANUAL"]  # 275 -> uint8 19
+    assert command(176, 1, 2) == mavlink.MAV_RESULT_ACCEPTED and sub.mode == MODES["ALT_HOLD"]
+    sub.texts.clear()
+    assert command(176, 1, 99) == command(176, 1, 4) == mavlink.MAV_RESULT_FAILED and sub.mode == MODES["ALT_HOLD"]
+    assert [text for _, text in sub.texts] == ["No such mode 99", "Flight mode change failed GUIDED"]
+    assert command(176, 0, 19) == command(176, 128, 2) == command(176, math.nan, 19) == mavlink.MAV_RESULT_DENIED
+    assert command(176, 128, 1) == mavlink.MAV_RESULT_ACCEPTED and sub.safety_on
+    assert not sub.servo_outputs().any()                                          # safety on: no pulses at all
+    assert command(176, 128, 0) == mavlink.MAV_RESULT_ACCEPTED and sub.servo_outputs()[0] == 1500
+    assert command(520, 0) == mavlink.MAV_RESULT_FAILED                           # capabilities need param1 = 1
+    sub.texts.clear()
+    assert command(511, 12345, 1e6) == mavlink.MAV_RESULT_DENIED
+    assert sub.texts == [(6, "No ap_message for mavlink id (12345)")]
+    assert command(511, math.nan, 5e5) == mavlink.MAV_RESULT_ACCEPTED             # NaN -> id 0: HEARTBEAT
+    assert scheduler.intervals["HEARTBEAT"] == 0.5
+    assert command(511, 0, math.nan) == mavlink.MAV_RESULT_ACCEPTED and scheduler.intervals["HEARTBEAT"] == 1.0
+    assert command(5300, 0) == mavlink.MAV_RESULT_UNSUPPORTED                     # not in 4.5's command table
+
+
+def test_capabilities_and_requested_messages_follow_the_ack():
+    bridge = Bridge(BridgeConfig(endpoints=()))
+    scheduler = Scheduler(("HEARTBEAT",), lambda g: 0)
+    for number, param1 in ((520, 1.0), (512, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)):
+        ack, version = (r for r, _ in bridge.protocol.handle(
+            decode(GCS.command_long_encode(1, 1, number, 0, param1, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0.0))
+        assert (ack.result, version.get_type()) == (mavlink.MAV_RESULT_ACCEPTED, "AUTOPILOT_VERSION")
+
+
+def test_override_is_uint16_and_radio_in_int16_as_ardusub_45_sitl():
+    """Measured on 4.5.3 SITL, armed in MANUAL: 40000, 32768 or 65534 on the throttle channel drove the vertical
+    thrusters full down (int16 radio_in below trim), 32767 full up; RC_CHANNELS showed the override unchanged;
+    channels 17 and 18 of RC_CHANNELS_OVERRIDE did nothing."""
+    sub = ArduSub(Params())
+    sub.arm(True)
+    for value, vertical in ((40000, 1900), (32768, 1900), (65534, 1900), (32767, 1100), (1700, 1300)):
+        sub.rc_override(255, [65535, 65535, value] + [65535] * 5 + [0] * 8 + [1700, 1800], 0.0)
+        sub.update(0.0)
+        assert list(sub.motor_pwm()[4:]) == [vertical] * 4 and sub.rc.radio_in[2] == value
+    assert len(sub.rc.radio_in) == 16
+    sub.rc.set_override(8, -5, 0.0)                              # an int16 parameter such as RC9_MIN, as uint16
+    sub.update(0.0)
+    assert sub.rc.radio_in[8] == 65531
+
+
+def test_param_read_by_name_echoes_index_minus_one(protocol):
+    proto, _, params, scheduler, _ = protocol
+    [(value, _)] = proto.handle(decode(GCS.param_request_read_encode(1, 1, b"FS_GCS_ENABLE", -1)), 0, scheduler, 0)
+    assert (value.param_id, value.param_index, value.param_count) == ("FS_GCS_ENABLE", 65535, len(params))
 
 
 def test_joystick_maps_like_ardusub_45_sitl():
