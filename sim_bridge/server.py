@@ -154,7 +154,7 @@ class Bridge:
             voltage=battery.voltage, current=battery.current, consumed_ah=battery.consumed_ah,
             remaining=battery.remaining, origin=self.config.origin, water_density=self.vehicle.water_density,
             gravity=self.vehicle.gravity, unix_start=self.unix_start, firmware=self.params.firmware,
-            mission_count=len(self.missions.items))
+            mission_count=len(self.missions.items), safety_on=self.sub.safety_on)
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:

@@ -54,6 +54,7 @@ class Snapshot:
     unix_start: float                    # wall-clock epoch (s) of simulated time 0
     firmware: str
     mission_count: int = 0               # items of the stored mission, home's slot included
+    safety_on: bool = False              # the software safety switch: motor outputs not enabled
 
     @property
     def ms(self) -> int:
@@ -129,7 +130,8 @@ def rc_channels(s: Snapshot):
 
 
 def sys_status(s: Snapshot):
-    return ENCODER.sys_status_encode(SENSORS, SENSORS, HEALTH, 0, round(s.voltage * 1000), round(s.current * 100),
+    enabled = SENSORS & ~mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS if s.safety_on else SENSORS
+    return ENCODER.sys_status_encode(SENSORS, enabled, HEALTH, 0, round(s.voltage * 1000), round(s.current * 100),
                                      round(s.remaining * 100), 0, 0, 0, 0, 0, 0)
 
 

@@ -475,13 +475,22 @@ def test_commands_cast_their_parameters_as_ardusub_45_sitl(protocol):
     assert command(5300, 0) == mavlink.MAV_RESULT_UNSUPPORTED                     # not in 4.5's command table
 
 
-def test_capabilities_and_requested_messages_follow_the_ack():
+def test_requested_messages_follow_the_ack_and_sys_status_shows_the_safety():
     bridge = Bridge(BridgeConfig(endpoints=()))
     scheduler = Scheduler(("HEARTBEAT",), lambda g: 0)
-    for number, param1 in ((520, 1.0), (512, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)):
-        ack, version = (r for r, _ in bridge.protocol.handle(
+
+    def request(number, param1):
+        ack, reply = (r for r, _ in bridge.protocol.handle(
             decode(GCS.command_long_encode(1, 1, number, 0, param1, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0.0))
-        assert (ack.result, version.get_type()) == (mavlink.MAV_RESULT_ACCEPTED, "AUTOPILOT_VERSION")
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED
+        return reply
+
+    assert request(520, 1.0).get_type() == request(512, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION).get_type() == \
+        "AUTOPILOT_VERSION"
+    motors = mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    assert request(512, mavlink.MAVLINK_MSG_ID_SYS_STATUS).onboard_control_sensors_enabled & motors
+    bridge.protocol.handle(decode(GCS.set_mode_encode(1, 128, 1)), 0, scheduler, 0.0)     # as 4.5.3 SITL shows it
+    assert not request(512, mavlink.MAVLINK_MSG_ID_SYS_STATUS).onboard_control_sensors_enabled & motors
 
 
 def test_override_is_uint16_and_radio_in_int16_as_ardusub_45_sitl():
