@@ -15,6 +15,7 @@ import threading
 import time
 
 import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import load_t200
@@ -65,6 +66,7 @@ class Bridge:
         self.schedulers: list[Scheduler] = []
         self.steps = 0
         self.messages_received = 0
+        self.message_types: set[str] = set()      # of the dialect's types received (unknown ids not counted)
         self.handler_errors = 0
         self._step_us = round(config.step * 1e6)
         self.servo = self.sub.servo_outputs()
@@ -201,6 +203,8 @@ class Bridge:
         for link, scheduler in zip(self.links, self.schedulers):
             for msg in link.receive():
                 self.messages_received += 1
+                if msg.get_msgId() in mavlink.mavlink_map:
+                    self.message_types.add(msg.get_type())
                 try:
                     replies = self.protocol.handle(msg, link.channel, scheduler, t)
                     for reply, to_all in replies:

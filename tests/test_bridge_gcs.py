@@ -62,10 +62,13 @@ class BridgeProcess:
         self.err_path = workdir / f"bridge-{self.port}.err"
         self.proc: subprocess.Popen | None = None
 
-    def __enter__(self) -> "BridgeProcess":
+    def start(self) -> "BridgeProcess":
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
             self.proc = subprocess.Popen(self.args, stdout=out, stderr=err, stdin=subprocess.DEVNULL)
         return self
+
+    def __enter__(self) -> "BridgeProcess":
+        return self.start()
 
     def stop(self) -> int:
         """SIGTERM, then wait (kill after WAIT s); the exit code."""
@@ -89,13 +92,15 @@ class BridgeProcess:
 
 
 class Gcs:
-    """A pymavlink ground station on a bridge's udpin port, with an optional background heartbeat/override pump.
+    """A pymavlink ground station on a bridge's udpin port (or, with transport "tcp", its tcpin port), with an
+    optional background heartbeat/override pump.
 
     `rate` is in simulated Hz: the pump sends `rate * speedup` times per wall second, as a GCS flying a sped-up
     vehicle must."""
 
-    def __init__(self, port: int, speedup: float = 1.0, sysid: int = 255, rate: float = 2.0):
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
+    def __init__(self, port: int, speedup: float = 1.0, sysid: int = 255, rate: float = 2.0,
+                 transport: str = "udpout"):
+        self.conn = mavutil.mavlink_connection(f"{transport}:127.0.0.1:{port}", source_system=sysid,
                                                source_component=190)
         self.speedup = speedup
         self.rate = rate

@@ -40,7 +40,8 @@ examples:
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
   rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
 
-Stop with Ctrl-C or SIGTERM; the achieved speedup and the loop's timing are printed on exit.
+Stop with Ctrl-C or SIGTERM; the achieved speedup, the loop's timing and the count of messages received (and of
+any that raised an error while being handled: each is also reported on stderr) are printed on exit.
 """
 
 
@@ -148,6 +149,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"sim-bridge: stopped at t={s['sim_time']:.2f} s after {s['wall_time']:.2f} s wall "
           f"(speedup {s['speedup']:.3f}, {s['slips']} slips); step lateness ms: mean {s['late_mean_ms']:.3f} "
           f"p50 {s['late_p50_ms']:.3f} p99 {s['late_p99_ms']:.3f} max {s['late_max_ms']:.3f}", flush=True)
+    print(f"sim-bridge: {bridge.messages_received} messages received ({len(bridge.message_types)} types), "
+          f"{bridge.handler_errors} handler errors", flush=True)
     if rejected := {link.channel: link.rejections.count for link in bridge.links if link.rejections.count}:
         print("sim-bridge: frames dropped for their signature: "
               + ", ".join(f"link {channel}: {n}" for channel, n in rejected.items()), flush=True)
