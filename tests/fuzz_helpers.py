@@ -3,11 +3,12 @@ written to them, and an independent check that the vehicle came through it (used
 tools/fuzz_bridge.py).
 
 Link 0 (the bridge's first udpin) belongs to the checker, a pymavlink station as sysid 200; the traffic goes to the
-other links, UDP and TCP. The traffic may ask a link for every message every millisecond (as a station may: the
-vehicle then sends each at most once per 2.5 ms main-loop step, and its simulated clock slows if the machine cannot
-keep up), so the checks avoid streams: messages are requested, and intervals read with a probe that skips the rest. Every `batch` chunks the sender waits for the vehicle to answer a TIMESYNC on link 0: the
+other links, UDP and TCP. Every BATCH chunks the sender waits for the vehicle to answer a TIMESYNC on link 0: the
 bridge reads its links in order on every pass, so everything sent before that request is then being read, and the
-kernel never has to drop a datagram for want of buffer space.
+kernel never has to drop a datagram for want of buffer space. The traffic may ask a link for every message every
+millisecond (as a station may: the vehicle then sends each at most once per 2.5 ms main-loop step, and its simulated
+clock slows if the machine cannot keep up), so the checks avoid streams: messages are requested, and intervals read
+with a probe that skips everything else.
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ class Sender:
             if self.links[index][0] == "udp":
                 sock.send(data)
             else:
-                sock.setblocking(True)
+                sock.settimeout(WAIT)              # the bridge reads every pass: a full buffer drains quickly
                 sock.sendall(data)
                 sock.setblocking(False)
         except (ConnectionError, BlockingIOError):
@@ -123,8 +124,8 @@ class FuzzReport:
 
 
 def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, progress=None) -> FuzzReport:
-    """Send `chunks` chunks of seeded traffic, each on a link chosen at random, pacing on `checker`'s TIMESYNC;
-    `progress(report)` is called after every batch. Then a sweep: FLUSH zero bytes on every link (ending whatever
+    """Send `chunks` chunks of seeded traffic, each on a link chosen at random, pacing on `checker`'s TIMESYNC
+    (`progress(report)` after every BATCH chunks). Then a sweep: FLUSH zero bytes on every link (ending whatever
     frame a broken chunk left open) and one well-formed message of every type, so that each type reaches the
     vehicle whole at least once whatever the broken frames before it swallowed."""
     traffic = Traffic(seed, param_names=fuzz_param_names())
@@ -137,14 +138,14 @@ def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, pro
         sync(checker, k)
         report.chunks, report.seconds = k, time.monotonic() - start
         report.kinds, report.types = traffic.sent_kinds, traffic.sent_types
-        if progress is not None:
-            progress(report)
 
     try:
         for k in range(1, chunks + 1):
             sender.send(traffic.rng.randrange(len(links)), traffic.chunk().data)
             if k % BATCH == 0:
                 batch_done(k)
+                if progress is not None:
+                    progress(report)
         for index in range(len(links)):
             sender.send(index, bytes(FLUSH))
         for index, name in enumerate(sorted(traffic.classes)):
@@ -174,11 +175,12 @@ def check_vehicle(bridge: BridgeProcess, checker: Gcs, links: list[tuple[str, in
     problems: list[str] = []
     if bridge.proc.poll() is not None:
         return [f"the bridge process exited with status {bridge.proc.returncode}"]
-    for check in (_answers, _parameters, _state, _outputs):
-        try:
-            problems += check(checker)
-        except AssertionError as exc:
-            problems.append(f"{check.__name__.strip('_')}: {exc}")
+    try:
+        problems += _answers(checker)
+        params = read_all_params(checker)
+        problems += _parameters(params) + _state(checker) + _outputs(checker, params)
+    except AssertionError as exc:
+        problems.append(f"the vehicle stopped answering the checker: {exc}")
     for kind, port in links:
         try:
             problems += _intervals(kind, port)
@@ -223,9 +225,8 @@ def read_all_params(checker: Gcs) -> dict[str, object]:
     return {m.param_id: m for i, m in values.items() if i < first.param_count}
 
 
-def _parameters(checker: Gcs) -> list[str]:
+def _parameters(params: dict[str, object]) -> list[str]:
     """Every parameter finite and within its type; as many as the vehicle has."""
-    params = read_all_params(checker)
     problems = [f"{len(params)} parameters listed, {len(Params())} expected"] if len(params) != len(Params()) else []
     for name, m in params.items():
         value, limits = m.param_value, INT_LIMITS.get(m.param_type)
@@ -251,9 +252,9 @@ def _state(checker: Gcs) -> list[str]:
     return problems
 
 
-def _outputs(checker: Gcs) -> list[str]:
+def _outputs(checker: Gcs, params: dict[str, object]) -> list[str]:
     """Disarmed with the safety off: every output routed to a motor neutral, every unassigned one silent."""
-    functions = {n: int(checker.get_param(f"SERVO{n}_FUNCTION").param_value) for n in range(1, SERVOS + 1)}
+    functions = {n: int(params[f"SERVO{n}_FUNCTION"].param_value) for n in range(1, SERVOS + 1)}
     m = requested(checker, "SERVO_OUTPUT_RAW")
     problems = []
     for n, function in functions.items():

@@ -5,7 +5,7 @@ vehicle still answers, its state and parameters are sane, its message intervals 
 it handled every message without an exception.
 
 Run:
-    .venv/bin/python tools/fuzz_bridge.py [--chunks 120000] [--seed 1] [--speedup 10]
+    .venv/bin/python tools/fuzz_bridge.py [--chunks 150000] [--seed 1] [--speedup 10]
 Prints progress, then the figures: chunks and well-formed messages sent, types covered, messages per second,
 messages the bridge received, handler errors and problems found. Exit status 1 if any were found.
 """
@@ -29,13 +29,13 @@ PROGRESS_EVERY = 10_000
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--chunks", type=int, default=120_000, help="writes to send (default %(default)s)")
+    parser.add_argument("--chunks", type=int, default=150_000, help="writes to send (default %(default)s)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the traffic (default %(default)s)")
     parser.add_argument("--speedup", type=float, default=10.0, help="the bridge's --speedup (default %(default)s)")
     args = parser.parse_args()
 
     def progress(report):
-        if report.chunks % PROGRESS_EVERY < 100:
+        if report.chunks % PROGRESS_EVERY == 0:
             print(f"  {report.chunks} chunks, {report.messages} well-formed messages, {report.seconds:.0f} s",
                   flush=True)
 
