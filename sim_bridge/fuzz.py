@@ -27,7 +27,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 GCS_SYSID = 255
 FOCUS = ("HEARTBEAT", "COMMAND_LONG", "COMMAND_INT", "PARAM_SET", "PARAM_REQUEST_READ", "RC_CHANNELS_OVERRIDE",
-         "MANUAL_CONTROL", "SET_MODE", "REQUEST_DATA_STREAM", "TIMESYNC", "FILE_TRANSFER_PROTOCOL", "SETUP_SIGNING")
+         "MANUAL_CONTROL", "SET_MODE", "REQUEST_DATA_STREAM", "TIMESYNC", "FILE_TRANSFER_PROTOCOL")
 # Commands a vehicle acts on: a command field takes one of these half of the time.
 FOCUS_COMMANDS = tuple(getattr(mavlink, f"MAV_CMD_{name}") for name in (
     "COMPONENT_ARM_DISARM", "DO_SET_MODE", "SET_MESSAGE_INTERVAL", "GET_MESSAGE_INTERVAL", "REQUEST_MESSAGE",

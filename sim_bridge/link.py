@@ -19,6 +19,7 @@ KINDS = ("udpout", "udpin", "tcpin")
 MAX_DATAGRAM = 65535
 MAX_TCP_BACKLOG = 1 << 20        # bytes queued for a slow TCP client before it is dropped
 HOST = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_.-]{0,252}[A-Za-z0-9_])?")   # a host name or an IPv4 address
+UINT64_MASK = (1 << 64) - 1
 
 
 class LinkError(Exception):
@@ -155,7 +156,8 @@ class Link:
         """Encode `msg` with this link's sequence numbers (signed, when signing is on) and write it to every peer."""
         if self.signing.sign_outgoing:
             advance(self.signing, time.time())
-        self.encoder.send(msg)
+            self.signing.timestamp &= UINT64_MASK     # a uint64_t in ArduPilot: a SETUP_SIGNING timestamp near 2^64
+        self.encoder.send(msg)                        # wraps there, where pymavlink's struct.pack would fail
 
     def write(self, buf: bytes) -> None:
         """File interface used by the pymavlink encoder."""

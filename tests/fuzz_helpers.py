@@ -25,7 +25,7 @@ from run_helpers import CHECKER_SYSID, SPEEDUP
 from test_bridge_gcs import RETRY, WAIT, BridgeProcess, Gcs, free_port, mavutil
 
 from sim_bridge.ardusub import MOTOR1, MOTOR8, SUPPORTED_MODES
-from sim_bridge.fuzz import SIGNATURE_LEN, STX_V1, STX_V2, Traffic
+from sim_bridge.fuzz import SIGNATURE_LEN, SIGNED, STX_V1, STX_V2, Traffic
 from sim_bridge.params import Params
 from sim_bridge.telemetry import NAME_OF_ID
 
@@ -146,12 +146,17 @@ def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, pro
                 batch_done(k)
                 if progress is not None:
                     progress(report)
+        batch_done(chunks)
         for index in range(len(links)):
             sender.send(index, bytes(FLUSH))
-        for index, name in enumerate(sorted(traffic.classes)):
+        last = "SETUP_SIGNING"          # it may give the vehicle a key, after which unsigned frames are dropped
+        for index, name in enumerate(sorted(set(traffic.classes) - {last}) + [last]):
+            if name == last:
+                batch_done(chunks)      # everything else read first (the vehicle reads its links in order)
             sender.send(index % len(links), traffic.frame(name))
             traffic.sent_types[name] += 1
         batch_done(chunks)
+        sync(checker, chunks + 1)       # answered after the pass that read it: signed if it set a key
     finally:
         report.reconnects = sender.reconnects
         sender.close()
@@ -160,10 +165,17 @@ def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, pro
 
 def sync(checker: Gcs, token: int) -> None:
     """Until the vehicle answers a TIMESYNC request on the checker's link. The checker first stops its link's
-    streams, as a ground station sets the rates it wants, in case the traffic's PARAM_SETs raised them."""
+    streams, as a ground station sets the rates it wants, in case the traffic's PARAM_SETs raised them. If the answer
+    is signed, the traffic's SETUP_SIGNING gave the vehicle a key (as it would ArduSub, disarmed), and the fuzzed
+    links' unsigned frames would all be dropped from then on: the checker, on link 0 (ArduPilot's USB channel, which
+    takes unsigned frames), turns signing off again, as an operator with a cable would. (The vehicle answers link 0
+    before it reads the others in the same pass: a key set by the batch just sent shows in the next answer.)"""
     checker.send("request_data_stream", 1, 1, mav.MAV_DATA_STREAM_ALL, 0, 0)
-    checker.request(lambda: checker.send("timesync", 0, token), "TIMESYNC",
-                    lambda m: m.ts1 == token and m.get_srcSystem() == 1)
+    answer = checker.request(lambda: checker.send("timesync", 0, token), "TIMESYNC",
+                             lambda m: m.ts1 == token and m.get_srcSystem() == 1)
+    if answer.get_header().incompat_flags & SIGNED:      # pymavlink's get_signed() is for checked signatures
+        checker.send("setup_signing", 1, 1, [0] * 32, 0)
+        sync(checker, token + 1)
 
 
 # -- the checks --------------------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ def test_vehicle_survives_fuzzed_traffic_on_four_links(tmp_path):
     received, types, errors = bridge_counters(bridge.output)
     assert errors == 0 and "error handling" not in bridge.output, bridge.output
     assert len(report.types) == types == len(mavlink.mavlink_map)      # every type sent, and received whole
-    assert received > 0.7 * report.messages                            # the rest lost behind broken frames
+    assert received > report.messages / 3          # the rest lost behind broken frames or while a key was set
     defaults = {spec.name: spec.default for spec in Params().specs}
     changed = [name for name, m in params.items() if m.param_value != defaults[name]]
     assert len(changed) >= 5, changed                                  # the traffic reached the handlers

@@ -113,6 +113,26 @@ def test_a_frame_with_the_wrong_key_does_not_lock_the_genuine_stream_out():
     assert rejections.count == 1 and rejections.first.signed and rejections.first.sysid == 255
 
 
+def test_a_setup_signing_timestamp_near_2_to_the_64_wraps_as_a_uint64():
+    """Found by tests/test_bridge_fuzz.py: the loaded timestamp (stored + a minute) and every frame's increment
+    overflowed pymavlink's 64-bit pack, in the bridge's telemetry loop, and killed it."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    from sim_bridge.link import Link
+    from sim_bridge.signing import VehicleSigning
+
+    link = Link(f"udpout:127.0.0.1:{free_port()}", 1, 1)
+    try:
+        signing = VehicleSigning(None, time.time())
+        signing.attach([link])
+        signing.setup(bytes(range(32)), 2**64 - 1, "a test")
+        for _ in range(3):
+            link.send(mavlink.MAVLink_heartbeat_message(12, 3, 81, 19, 3, 3))
+        assert 0 < link.signing.timestamp < 2**64
+    finally:
+        link.close()
+
+
 # -- the runner against a signing vehicle --------------------------------------------------------------------
 
 

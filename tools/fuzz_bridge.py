@@ -62,9 +62,15 @@ def main() -> int:
           f"({', '.join(f'{k} {v}' for k, v in sorted(report.kinds.items()))})")
     print(f"types sent well-formed: {len(report.types)} of {len(mavlink.mavlink_map)} in the ardupilotmega dialect; "
           f"TCP reconnections: {report.reconnects}")
-    print(next((line for line in output.splitlines() if "stopped at" in line), "bridge: no summary line"))
-    print(f"bridge: {received} messages received ({types} types; the rest lost to the broken frames before them, "
-          f"as a byte-stream parser loses them), {errors} handler errors; problems found: {len(problems)}")
+    lines = output.splitlines()
+    print(next((line for line in lines if "stopped at" in line), "bridge: no summary line"))
+    keys = sum("signing key set by SETUP_SIGNING" in line for line in lines)
+    dropped = next((line.split(": ", 2)[2] for line in lines if "dropped for their signature" in line), "none")
+    print(f"bridge: {received} messages received ({types} types), {errors} handler errors; the traffic's SETUP_SIGNING "
+          f"gave it a key {keys} times (the checker turned signing off each time), frames dropped for their signature "
+          f"meanwhile: {dropped}; the rest of the messages sent were lost behind broken frames, as a MAVLink "
+          f"byte-stream parser loses them")
+    print(f"problems found: {len(problems)}")
     for problem in problems:
         print(f"  {problem}")
     return 1 if problems or errors else 0
