@@ -3,9 +3,9 @@ written to them, and an independent check that the vehicle came through it (used
 tools/fuzz_bridge.py).
 
 Link 0 (the bridge's first udpin) belongs to the checker, a pymavlink station as sysid 200; the traffic goes to the
-other links, UDP and TCP. Every BATCH chunks the sender waits for the vehicle to answer a TIMESYNC on link 0: the
-bridge reads its links in order on every pass, so everything sent before that request is then being read, and the
-kernel never has to drop a datagram for want of buffer space. The traffic may ask a link for every message every
+other links, UDP and TCP. Every BATCH chunks the sender waits until the bridge's side holds every TCP byte sent, then
+for the vehicle to answer a TIMESYNC on link 0: the bridge reads its links in order on every pass, so everything sent
+before that request is then being read, and the kernel never has to drop a datagram for want of buffer space. The traffic may ask a link for every message every
 millisecond (as a station may: the vehicle then sends each at most once per 2.5 ms main-loop step, and its simulated
 clock slows if the machine cannot keep up), so the checks avoid streams: messages are requested, and intervals read
 with a probe that skips everything else.
@@ -13,9 +13,12 @@ with a probe that skips everything else.
 
 from __future__ import annotations
 
+import fcntl
 import math
 import re
 import socket
+import struct
+import termios
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -84,6 +87,15 @@ class Sender:
         except (ConnectionError, BlockingIOError):
             self._reconnect(index)
 
+    def wait_sent(self) -> None:
+        """Until the kernel has handed every byte written to a TCP link over to the bridge's side (a slow bridge's
+        full receive window keeps them here, and a TIMESYNC answered meanwhile would not cover them)."""
+        deadline = time.monotonic() + WAIT
+        for (kind, _), sock in zip(self.links, self.socks):
+            while kind == "tcp" and _unsent(sock) and time.monotonic() < deadline:
+                self.drain()
+                time.sleep(0.002)
+
     def drain(self) -> None:
         for index, sock in enumerate(self.socks):
             while True:
@@ -106,6 +118,11 @@ class Sender:
     def close(self) -> None:
         for sock in self.socks:
             sock.close()
+
+
+def _unsent(sock: socket.socket) -> int:
+    """Bytes in a TCP socket's send queue not yet taken by the peer (Linux SIOCOUTQ)."""
+    return struct.unpack("i", fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0" * 4))[0]
 
 
 @dataclass
@@ -135,6 +152,7 @@ def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, pro
 
     def batch_done(k: int) -> None:
         sender.drain()
+        sender.wait_sent()
         sync(checker, k)
         report.chunks, report.seconds = k, time.monotonic() - start
         report.kinds, report.types = traffic.sent_kinds, traffic.sent_types
