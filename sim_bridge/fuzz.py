@@ -11,7 +11,8 @@ frames (some broken) run together, a correct CRC over a payload of the wrong len
 frames with a random signature, and plain random bytes.
 
 Half the well-formed messages cycle through every type of the dialect (each round in a new random order), half come
-from `focus`: the messages a vehicle acts on (commands, parameters, overrides, modes, stream requests).
+from `focus`: the messages a vehicle acts on (commands, parameters, overrides, modes, stream requests,
+the mission protocol).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 GCS_SYSID = 255
 FOCUS = ("HEARTBEAT", "COMMAND_LONG", "COMMAND_INT", "PARAM_SET", "PARAM_REQUEST_READ", "RC_CHANNELS_OVERRIDE",
-         "MANUAL_CONTROL", "SET_MODE", "REQUEST_DATA_STREAM", "TIMESYNC", "FILE_TRANSFER_PROTOCOL")
+         "MANUAL_CONTROL", "SET_MODE", "REQUEST_DATA_STREAM", "TIMESYNC", "FILE_TRANSFER_PROTOCOL", "MISSION_COUNT",
+         "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT", "MISSION_CLEAR_ALL")
 # Commands a vehicle acts on: a command field takes one of these half of the time.
 FOCUS_COMMANDS = tuple(getattr(mavlink, f"MAV_CMD_{name}") for name in (
     "COMPONENT_ARM_DISARM", "DO_SET_MODE", "SET_MESSAGE_INTERVAL", "GET_MESSAGE_INTERVAL", "REQUEST_MESSAGE",

@@ -14,6 +14,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.dynamics import rotation
+from rov_mav.units import wrap_angle
 
 ENCODER = mavlink.MAVLink(None)
 EARTH_RADIUS = 6378137.0                 # m
@@ -79,7 +80,9 @@ def heartbeat(s: Snapshot):
 
 
 def attitude(s: Snapshot):
-    return ENCODER.attitude_encode(s.ms, *map(float, s.eta[3:6]), *map(float, s.nu[3:6]))
+    """Roll, pitch and yaw within [-pi, pi), as ArduPilot's AHRS reports them (the plant's angles accumulate turns:
+    a yaw of -4.08 rad reached a station before this, found by tests/test_bridge_fuzz.py)."""
+    return ENCODER.attitude_encode(s.ms, *map(float, wrap_angle(s.eta[3:6])), *map(float, s.nu[3:6]))
 
 
 def attitude_quaternion(s: Snapshot):

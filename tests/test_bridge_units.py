@@ -10,7 +10,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.thrusters import allocation_matrix, load_t200
-from sim_bridge import mixer
+from sim_bridge import mixer, telemetry
 from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.config import BridgeConfig
@@ -491,6 +491,13 @@ def test_requested_messages_follow_the_ack_and_sys_status_shows_the_safety():
     assert request(512, mavlink.MAVLINK_MSG_ID_SYS_STATUS).onboard_control_sensors_enabled & motors
     bridge.protocol.handle(decode(GCS.set_mode_encode(1, 128, 1)), 0, scheduler, 0.0)     # as 4.5.3 SITL shows it
     assert not request(512, mavlink.MAVLINK_MSG_ID_SYS_STATUS).onboard_control_sensors_enabled & motors
+
+
+def test_attitude_angles_are_reported_within_pi():
+    snap = Bridge(BridgeConfig(endpoints=())).snapshot()
+    snap.eta = np.array([0.0, 0.0, 1.0, 0.1 + 2 * math.pi, -0.2, -4.08])       # the plant's yaw after turns
+    m = telemetry.attitude(snap)
+    assert (m.roll, m.pitch, m.yaw) == pytest.approx((0.1, -0.2, 2 * math.pi - 4.08))
 
 
 def test_override_is_uint16_and_radio_in_int16_as_ardusub_45_sitl():
