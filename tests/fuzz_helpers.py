@@ -5,10 +5,10 @@ tools/fuzz_bridge.py).
 Link 0 (the bridge's first udpin) belongs to the checker, a pymavlink station as sysid 200; the traffic goes to the
 other links, UDP and TCP. Every BATCH chunks the sender waits until the bridge's side holds every TCP byte sent, then
 for the vehicle to answer a TIMESYNC on link 0: the bridge reads its links in order on every pass, so everything sent
-before that request is then being read, and the kernel never has to drop a datagram for want of buffer space. The traffic may ask a link for every message every
-millisecond (as a station may: the vehicle then sends each at most once per 2.5 ms main-loop step, and its simulated
-clock slows if the machine cannot keep up), so the checks avoid streams: messages are requested, and intervals read
-with a probe that skips everything else.
+before that request is then being read, and the kernel never has to drop a datagram for want of buffer space. The
+traffic may ask a link for every message every millisecond (as a station may: the vehicle then sends each at most
+once per 2.5 ms main-loop step, and its simulated clock slows if the machine cannot keep up), so the checks avoid
+streams: messages are requested, and intervals read with a probe that skips everything else.
 """
 
 from __future__ import annotations
