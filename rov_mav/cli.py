@@ -19,6 +19,7 @@ SUBCOMMAND_MODULES = (
     "rov_mav.commands.tune",
     "rov_mav.commands.run",
     "rov_mav.commands.sim_bridge",
+    "rov_mav.commands.analyze",
 )
 
 

@@ -19,6 +19,8 @@ MAY_IMPORT = {
     "sim_bridge": {"rov_mav.model"},
     "rov_mav.telemetry": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline",
                           "rov_mav.flight"},
+    "rov_mav.review": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline", "rov_mav.flight",
+                       "rov_mav.telemetry"},
 }
 FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing"}
 # Libraries that belong to the shell: none of them may be imported below it.

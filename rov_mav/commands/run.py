@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import socket
 import sys
@@ -107,8 +108,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="take over a vehicle that is already armed or that another station is driving")
     p.add_argument("--metrics", type=output_file, metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
     p.add_argument("--log", type=output_folder, metavar="DIR",
-                   help="write ticks.csv (state, reference, commands, controller internals), events.csv and the "
-                        "raw MAVLink traffic (mavlink.tlog) to DIR")
+                   help="write ticks.csv (state, reference, commands, controller internals), events.csv, the "
+                        "raw MAVLink traffic (mavlink.tlog) and run.json to DIR (review it with `rov-mav analyze DIR`)")
     limits = p.add_argument_group("limits (default: the mission's `limits:` block)")
     limits.add_argument("--max-depth", type=positive_float, metavar="M", help="abort below this depth")
     limits.add_argument("--max-tracking-error", type=positive_float, metavar="M",
@@ -242,6 +243,11 @@ def main(args: argparse.Namespace) -> int:
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
         if args.log:
             run_log = RunLog(args.log)
+            run_log.write_run_info({
+                "mission": mission.name, "mission_file": str(Path(args.mission).resolve()),
+                "controller": settings.kind, "rate_hz": args.rate, "target": args.target or "built-in vehicle",
+                "dry_run": args.dry_run, "limits": dataclasses.asdict(limits),
+                "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
             session.taps.append(run_log.log_mavlink)
             sinks.append(run_log)
         rerun_target, rerun = rerun_sink(args, model, mission, default_recording)

@@ -243,6 +243,11 @@ class Session:
         p = list(params) + [0.0] * (7 - len(params))
         self._send("command_long", self.vehicle.sysid, self.vehicle.compid, command, confirmation, *p)
 
+    def announce(self, text: str) -> None:
+        """STATUSTEXT (INFO) to every station on the link; ArduSub writes it to its own log
+        (`GCS_MAVLINK::handle_statustext`, libraries/GCS_MAVLink/GCS_Common.cpp)."""
+        self._send("statustext", mavlink.MAV_SEVERITY_INFO, text.encode()[:50])
+
     def set_mode(self, custom_mode: int) -> bool:
         """DO_SET_MODE, accepted and confirmed by the next HEARTBEAT."""
         result = self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode)

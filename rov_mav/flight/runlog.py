@@ -1,6 +1,10 @@
-"""The run log (`--log DIR`): ticks.csv (state, reference, commands, the controller's internals), events.csv, and
-the raw MAVLink traffic both ways as mavlink.tlog (pymavlink's logfile format: 8-byte big-endian microseconds
-since the epoch, then the packet; open it with `mavutil.mavlink_connection(path)` or MAVExplorer).
+"""The run log (`--log DIR`): ticks.csv (state, reference, commands, the controller's internals), events.csv, the
+raw MAVLink traffic both ways as mavlink.tlog (pymavlink's logfile format: 8-byte big-endian microseconds
+since the epoch, then the packet; open it with `mavutil.mavlink_connection(path)` or MAVExplorer), and run.json
+(what was flown: mission, controller, rate, the disturbance when known).
+
+Every run also says on the link when its mission starts, in vehicle time (`mission_start_text`, a STATUSTEXT that
+ArduSub writes to its own log as "GCS:..."), so that any telemetry log of the dive can be aligned with the mission.
 
 The loop only queues; a writer thread formats and writes, so logging never blocks a control tick.
 """
@@ -8,7 +12,9 @@ The loop only queues; a writer thread formats and writes, so logging never block
 from __future__ import annotations
 
 import csv
+import json
 import queue
+import re
 import struct
 import threading
 import time
@@ -23,7 +29,20 @@ COLUMNS = (["t", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] 
            + [f"{d}_ddot_d" for d in DOF] + [f"tau_{w}" for w in WRENCH] + [f"tau_hat_{w}" for w in WRENCH]
            + [f"s_{d}" for d in DOF] + [f"gamma_{d}" for d in DOF] + [f"thrust_{i}" for i in range(1, 9)]
            + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage"])
+RUN_INFO = "run.json"
 _STOP = object()
+_MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
+
+
+def mission_start_text(t0: float) -> str:
+    """The STATUSTEXT announcing that the mission (t = 0) starts at `t0` vehicle s since boot (< 50 characters)."""
+    return f"rov-mav: mission t0 = {t0:.3f} s since boot"
+
+
+def parse_mission_start(text: str) -> float | None:
+    """t0 from a `mission_start_text` (as ArduSub logs it, with a prefix, too), else None."""
+    found = _MISSION_START.search(text)
+    return float(found.group(1)) if found else None
 
 
 def tick_row(r: TickRecord) -> list[str]:
@@ -41,6 +60,10 @@ class RunLog:
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._write, name="run-log", daemon=True)
         self._thread.start()
+
+    def write_run_info(self, info: dict) -> None:
+        """run.json: what this run flies (written at once, before the loop starts)."""
+        (self.directory / RUN_INFO).write_text(json.dumps(info, indent=2) + "\n")
 
     def log_tick(self, record: TickRecord) -> None:
         self._queue.put(("tick", record))

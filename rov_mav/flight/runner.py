@@ -9,7 +9,8 @@ the eight outputs to RCIN passthrough (each confirmed), MANUAL, arm.
 Flying: a pilot's joystick beyond the dead band, another station's RC override, a joystick appearing on our GCS
 sysid, RC input that is not ours, or a mode changed by someone else hands the vehicle to the pilot (`PilotTakeover`).
 Tick (each new ATTITUDE + LOCAL_POSITION_NED pair): reference -> law + adaptation -> allocation -> T200 map ->
-RC_CHANNELS_OVERRIDE, a TickRecord to every sink.
+RC_CHANNELS_OVERRIDE, a TickRecord to every sink. When the mission proper starts (after the lead-in) the run says so
+on the link, in vehicle time (`runlog.mission_start_text`), so that any telemetry log of the dive aligns with it.
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
@@ -32,6 +33,7 @@ from rov_mav.control.controller import Controller
 from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
+from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
 from rov_mav.flight.tick import TickRecord
 from rov_mav.flight.vehicle_state import State, StateDecoder
@@ -158,6 +160,7 @@ class Runner:
         self.last_override: list[int] | None = None
         self.lead_in: Mission | None = None
         self.t_start: float | None = None      # vehicle time of the first tick
+        self.announced = False                 # the mission's start was said on the link
         self._prev_t = 0.0
         self.stale = False
         self.stale_episodes = 0
@@ -556,6 +559,9 @@ class Runner:
             if self.stale_episodes <= STALE_REPORTS:
                 self.say("telemetry back: control resumed")
         t = self._mission_time(state.t)
+        if t >= 0 and not self.announced and not o.dry_run:
+            self.announced = True
+            self.session.announce(mission_start_text(state.t - t))
         reference = self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
         dt = min(max(state.t - self._prev_t, 0.0), o.stale_periods * self.period)
         self._prev_t = state.t

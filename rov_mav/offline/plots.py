@@ -44,12 +44,16 @@ def plot_dofs(trace: Trace, title: str, path: Path) -> Path:
     return _save(fig, path)
 
 
-def plot_path(traces: dict[str, Trace], title: str, path: Path) -> Path:
-    """3D path of one or more runs against the reference (Figs. IV-4, IV-7); NED drawn with depth down."""
+def plot_path(traces: dict[str, Trace], title: str, path: Path, planned: np.ndarray | None = None) -> Path:
+    """3D path of one or more runs against the reference (Figs. IV-4, IV-7), or against `planned` (M, 3) waypoints
+    when given; NED drawn with depth down."""
     fig = plt.figure(figsize=(8, 6.5))
     ax = fig.add_subplot(projection="3d")
     first = next(iter(traces.values()))
-    ax.plot(first.reference[:, 1], first.reference[:, 0], first.reference[:, 2], "k--", lw=1, label="reference")
+    if planned is not None:
+        ax.plot(planned[:, 1], planned[:, 0], planned[:, 2], "k--o", lw=1, ms=4, label="waypoints")
+    else:
+        ax.plot(first.reference[:, 1], first.reference[:, 0], first.reference[:, 2], "k--", lw=1, label="reference")
     for name, trace in traces.items():
         ax.plot(trace.eta[:, 1], trace.eta[:, 0], trace.eta[:, 2], lw=1.3, label=name)
     ax.set_xlabel("east (m)")
@@ -93,6 +97,46 @@ def plot_run(trace: Trace, label: str, out_dir: Path) -> list[Path]:
         plot_estimates(trace, f"{label}: disturbance estimate", out_dir / "estimates.png"),
         plot_rates(trace, f"{label}: adaptation rates", out_dir / "rates.png"),
     ]
+
+
+def plot_thrusters(series: dict[str, tuple[np.ndarray, np.ndarray]], limits: tuple[np.ndarray, np.ndarray],
+                   title: str, path: Path) -> Path:
+    """Each thruster's PWM over time, one line per source (e.g. commanded, the vehicle's outputs), with its
+    limits: series name -> (t (M,), pwm (M, 8)); limits (low (8,), high (8,)) us."""
+    fig, axes = plt.subplots(4, 2, figsize=(11, 9), sharex=True, sharey=True)
+    fig.suptitle(title)
+    for i, ax in enumerate(axes.T.ravel()):
+        for name, (t, pwm) in series.items():
+            ax.plot(t, pwm[:, i], lw=1, label=name)
+        for limit in (limits[0][i], limits[1][i]):
+            ax.axhline(limit, color="r", ls=":", lw=1)
+        ax.set_ylabel(f"T{i + 1} PWM (us)")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="best", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)")
+    return _save(fig, path)
+
+
+def plot_timeline(panels: list[tuple[str, dict[str, tuple[np.ndarray, np.ndarray]]]], title: str,
+                  path: Path, marks: list[tuple[float, str]] = ()) -> Path:
+    """Stacked time series sharing t: panels of (y label, {name: (t, values)}), and vertical marks (t, label)."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(11, 2.6 * len(panels)), sharex=True, squeeze=False)
+    fig.suptitle(title)
+    for ax, (label, lines) in zip(axes[:, 0], panels):
+        for name, (t, values) in lines.items():
+            ax.plot(t, values, ".-" if len(t) < 200 else "-", lw=1, ms=3, label=name)
+        for t_mark, _ in marks:
+            ax.axvline(t_mark, color="0.6", ls="--", lw=0.8)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        if len(lines) > 1:
+            ax.legend(loc="best", fontsize=8)
+    for t_mark, text in marks:
+        axes[0, 0].annotate(text, (t_mark, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=7,
+                            va="top", ha="right")
+    axes[-1, 0].set_xlabel("t (s)")
+    return _save(fig, path)
 
 
 def plot_convergence(cost_history: np.ndarray, gain_history: np.ndarray, title: str, path: Path) -> Path:

@@ -85,15 +85,16 @@ SERIES = {   # entity -> (names, colours)
 
 @dataclass(frozen=True)
 class TickColumns:
-    """n control ticks stacked: the fields of `TickRecord` with a leading (n,) axis; None where not known."""
+    """n control ticks stacked: the fields of `TickRecord` with a leading (n,) axis; None where not known (a
+    reviewed log of a dive rov-mav did not fly has no reference or controller internals)."""
 
     t: np.ndarray                     # (n,)
     eta: np.ndarray                   # (n, 6)
-    reference: np.ndarray             # (n, >= 6), eta_d first
-    tau: np.ndarray                   # (n, 6)
-    tau_hat: np.ndarray               # (n, 6)
-    s: np.ndarray                     # (n, 6)
-    gamma: np.ndarray                 # (n, 6)
+    reference: np.ndarray | None      # (n, >= 6), eta_d first
+    tau: np.ndarray | None            # (n, 6)
+    tau_hat: np.ndarray | None        # (n, 6)
+    s: np.ndarray | None              # (n, 6)
+    gamma: np.ndarray | None          # (n, 6)
     thrusts: np.ndarray | None = None            # (n, 8)
     pwm: np.ndarray | None = None                # (n, 8)
     true_disturbance: np.ndarray | None = None   # (n, 6)
@@ -144,29 +145,38 @@ def send_ticks(rec: rr.RecordingStream, ticks: TickColumns, vehicle: Vehicle,
         values = np.asarray(values, dtype=float).reshape(n, -1)
         send(path, rr.Scalars.columns(scalars=values.ravel()).partition(np.full(n, values.shape[1])))
 
-    position, eta_d = ticks.eta[:, :3], ticks.reference[:, :6]
+    position = ticks.eta[:, :3]
     start = position[:1] if previous_position is None else np.asarray(previous_position)[None]
     send(VEHICLE, rr.Transform3D.columns(translation=position, mat3x3=dynamics.rotation(ticks.eta)))
     send(TRAIL, rr.LineStrips3D.columns(strips=np.stack([np.concatenate([start, position[:-1]]), position], 1)))
-    send(REFERENCE_NOW, rr.Points3D.columns(positions=eta_d[:, :3]))
-
-    error = ticks.eta - eta_d
-    error[:, 3:] = np.degrees(wrap_angle(error[:, 3:]))
-    shown = np.concatenate([ticks.eta[:, :3], np.degrees(eta_d[:, 3:]) + error[:, 3:]], axis=1)  # angles unwrapped
-    reference = np.concatenate([eta_d[:, :3], np.degrees(eta_d[:, 3:])], axis=1)
-    for i, path in enumerate(POSE):
-        scalars(path, np.stack([shown[:, i], reference[:, i]], axis=1))
-    scalars(POSITION_ERROR, np.concatenate([error[:, :3], np.linalg.norm(error[:, :3], axis=1)[:, None]], 1))
-    scalars(ATTITUDE_ERROR, error[:, 3:])
-    scalars(SLIDING, ticks.s)
-    scalars(FORCE, ticks.tau[:, :3])
-    scalars(MOMENT, ticks.tau[:, 3:])
+    if ticks.reference is not None:
+        eta_d = ticks.reference[:, :6]
+        send(REFERENCE_NOW, rr.Points3D.columns(positions=eta_d[:, :3]))
+        error = ticks.eta - eta_d
+        error[:, 3:] = np.degrees(wrap_angle(error[:, 3:]))
+        shown = np.concatenate([position, np.degrees(eta_d[:, 3:]) + error[:, 3:]], axis=1)  # angles unwrapped
+        reference = np.concatenate([eta_d[:, :3], np.degrees(eta_d[:, 3:])], axis=1)
+        for i, path in enumerate(POSE):
+            scalars(path, np.stack([shown[:, i], reference[:, i]], axis=1))
+        scalars(POSITION_ERROR, np.concatenate([error[:, :3], np.linalg.norm(error[:, :3], axis=1)[:, None]], 1))
+        scalars(ATTITUDE_ERROR, error[:, 3:])
+    else:
+        shown = np.concatenate([position, np.degrees(np.unwrap(ticks.eta[:, 3:], axis=0))], axis=1)
+        for i, path in enumerate(POSE):
+            scalars(path, shown[:, i])
+    if ticks.s is not None:
+        scalars(SLIDING, ticks.s)
+    if ticks.tau is not None:
+        scalars(FORCE, ticks.tau[:, :3])
+        scalars(MOMENT, ticks.tau[:, 3:])
     truth = ticks.true_disturbance
-    for path, part in ((DISTURBANCE_FORCE, slice(0, 3)), (DISTURBANCE_MOMENT, slice(3, 6))):
-        estimate = ticks.tau_hat[:, part]
-        scalars(path, estimate if truth is None else np.hstack([estimate, truth[:, part]]))
-    scalars(GAMMA_TRANSLATION, ticks.gamma[:, :3])
-    scalars(GAMMA_ROTATION, ticks.gamma[:, 3:])
+    if ticks.tau_hat is not None:
+        for path, part in ((DISTURBANCE_FORCE, slice(0, 3)), (DISTURBANCE_MOMENT, slice(3, 6))):
+            estimate = ticks.tau_hat[:, part]
+            scalars(path, estimate if truth is None else np.hstack([estimate, truth[:, part]]))
+    if ticks.gamma is not None:
+        scalars(GAMMA_TRANSLATION, ticks.gamma[:, :3])
+        scalars(GAMMA_ROTATION, ticks.gamma[:, 3:])
     if ticks.thrusts is not None:
         vectors = ARROW_SCALE * ticks.thrusts[:, :, None] * vehicle.thruster_directions[None]
         send(ARROWS, rr.Arrows3D.columns(vectors=vectors.reshape(-1, 3)).partition(np.full(n, 8)))

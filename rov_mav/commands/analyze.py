@@ -1,0 +1,178 @@
+"""`rov-mav analyze`: review a dive afterwards, from a run's log folder or any ArduSub telemetry log."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from rov_mav.commands.common import add_rerun_option, rerun_recording
+from rov_mav.config import ConfigError
+
+DESCRIPTION = """\
+Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, mavlink.tlog) or any ArduSub telemetry log
+(.tlog: flown by rov-mav, by a pilot, or by ArduSub's own AUTO/GUIDED; written by rov-mav, MAVProxy or
+QGroundControl). The vehicle's state is decoded from ATTITUDE and LOCAL_POSITION_NED as `run` decodes it live.
+
+Measured against: the reference the run flew (a log folder's ticks.csv), or --mission from its start (announced
+on the link by rov-mav runs; else --mission-start, else the first arming), or the vehicle's own mission found in
+the log (MISSION_ITEM_INT traffic) as waypoints, by cross-track error; with none, what needs no reference is still
+reported. Writes what `simulate` writes (metrics JSON, PNG figures, a Rerun recording with the same layout) and
+prints a one-screen summary: tracking, loop timing, telemetry gaps and watchdog events, thruster saturation
+(outputs at their PWM limits), battery, modes and arming.
+
+A truncated or damaged log is read as far as it goes: the summary says where (byte offset, last good time).
+"""
+
+EPILOG = """\
+examples:
+  rov-mav run missions/square.yaml --log out/square/log && rov-mav analyze out/square/log
+  rov-mav analyze flight.tlog                                   # a pilot's dive, or ArduSub AUTO
+  rov-mav analyze flight.tlog --mission missions/square.yaml --mission-start 812.4
+
+exit status: 0 reviewed (a damaged or truncated log too, with a warning); 2 nothing usable could be read, or bad
+arguments.
+"""
+MODES_SHOWN = 8          # mode/arming changes printed before "... and N more"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("analyze", help="review a dive from a run's log folder or any ArduSub .tlog",
+                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("path", metavar="PATH", help="a run's --log folder, or a telemetry log (.tlog)")
+    p.add_argument("--mission", metavar="FILE", help="mission YAML to measure the dive against")
+    p.add_argument("--mission-start", type=float, metavar="S",
+                   help="vehicle seconds since boot at which the mission started (default: as the rov-mav run "
+                        "announced it, else the first arming)")
+    p.add_argument("--vehicle", metavar="FILE", help="vehicle YAML drawn in the recording (default: BlueROV2 Heavy)")
+    p.add_argument("--out", metavar="DIR", help="folder for the figures and recording (default: out/analyze-NAME)")
+    p.add_argument("--metrics", metavar="FILE", help="write the metrics JSON here (default: DIR/metrics.json)")
+    add_rerun_option(p)
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    from rov_mav import telemetry
+    from rov_mav.mission.missions import load_mission
+    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.review.dive_review import review_dive
+    from rov_mav.review.outputs import record, write_figures
+
+    mission = load_mission(args.mission) if args.mission else None
+    vehicle = load_vehicle(args.vehicle)
+    review = review_dive(args.path, mission, args.mission_start)
+    out_dir = Path(args.out or f"out/analyze-{review.name}")
+    metrics_path = Path(args.metrics) if args.metrics else out_dir / "metrics.json"
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
+    if metrics_path.is_dir():
+        raise ConfigError(f"--metrics {metrics_path}: is a folder, expected a file name")
+    figures = write_figures(review, out_dir)
+    metrics_path.parent.mkdir(parents=True, exist_ok=True)
+    metrics_path.write_text(json.dumps(_plain(review.metrics), indent=2) + "\n")
+    rerun_target, rec = rerun_recording(args, out_dir / "dive.rrd", review.reference_path)
+    delivered = True
+    if rec is not None:
+        record(review, rec, vehicle)
+        delivered = telemetry.finish(rec)
+    for line in review.warnings:
+        print(f"rov-mav analyze: warning: {line}", file=sys.stderr)
+    for line in summary(review.label, review.metrics):
+        print(line)
+    print(f"  metrics: {metrics_path}")
+    print(f"  figures: {', '.join(str(f) for f in figures) or 'none (no state in the log)'}")
+    print(f"  rerun: {rerun_target.describe(delivered)}")
+    return 0
+
+
+def summary(label: str, m: dict) -> list[str]:
+    """The one-screen summary of a review's metrics."""
+    lines = [f"{label}: {_what(m)}"]
+    ref = m.get("reference", {})
+    if "rms_position_error_m" in m:
+        status = "completed" if m["completed"] else "NOT completed"
+        start = ref.get("mission_start_s")
+        when = f", started at {start:.2f} s since boot ({ref.get('mission_start_from')})" if start is not None else ""
+        lines.append(f"  mission {m['mission']} ({ref.get('source')}){when}: {status}, {m['duration_s']:.1f} s "
+                     "measured")
+        lines.append(f"  tracking: position RMS {_cm(m['rms_position_error_m'])} (steady "
+                     f"{_cm(m['rms_position_error_steady_m'])}, max {_cm(m['max_position_error_m'])}); attitude RMS "
+                     f"{_num(m['rms_attitude_error_rad'], '.4f')} rad")
+    elif "path" in m:
+        p = m["path"]
+        closest = ", ".join(_cm(v) for v in p["closest_approach_m"][:6])
+        lines.append(f"  {ref.get('note')}: cross-track RMS {_cm(p['rms_cross_track_m'])}, max "
+                     f"{_cm(p['max_cross_track_m'])} ({p['samples_from']}); closest approach per waypoint {closest}")
+    else:
+        lines.append(f"  tracking: no reference ({ref.get('note', 'no mission')}; --mission FILE to measure one)")
+    loop = m.get("loop", {})
+    if loop.get("ticks"):
+        lines.append(f"  loop: {loop['ticks']} commands at {loop['control_rate_hz']:.1f} Hz of vehicle time; "
+                     f"telemetry-in to command-out p50 {_num(loop['latency_p50_ms'], '.2f')} ms, p99 "
+                     f"{_num(loop['latency_p99_ms'], '.2f')} ms ({loop['source']})")
+    if "telemetry" in m:
+        tm = m["telemetry"]
+        lines.append(f"  telemetry: {tm['samples']} states at {_num(tm['rate_hz'], '.1f')} Hz; {tm['gaps']} gap(s) "
+                     f"longer than {_num(tm['stale_after_ms'], '.0f')} ms (longest {_num(tm['max_gap_ms'], '.0f')} ms)")
+    if "watchdog" in m:
+        lines.append(f"  watchdog: {m['watchdog']['episodes']} stale-telemetry episode(s) ({m['watchdog']['source']})")
+    for station in m.get("commands", []):
+        lines.append(f"  commands: {station['message']} from sysid {station['sysid']}: {station['count']} at "
+                     f"{_num(station['rate_hz'], '.1f')} Hz")
+    if "saturation" in m:
+        lines.append("  thrusters at their PWM limits: " + "; ".join(
+            f"{name} {_percent(s['fraction_any_at_limit'])} of samples (worst "
+            f"T{1 + max(range(8), key=lambda i: s['fraction_at_limit'][i])} "
+            f"{_percent(max(s['fraction_at_limit']))})"
+            for name, s in m["saturation"].items() if isinstance(s, dict) and s.get("samples")) or "  no outputs")
+    if m.get("battery"):
+        b = m["battery"]
+        used = f", {b['consumed_mah']:.0f} mAh used ({b['consumed_from']})" if _finite(b.get("consumed_mah")) else ""
+        lines.append(f"  battery: {_num(b['start_v'], '.2f')} V -> {_num(b['end_v'], '.2f')} V, lowest "
+                     f"{_num(b['min_v'], '.2f')} V at t = {_num(b['min_at_s'], '.1f')} s{used}")
+    modes = m.get("modes", [])
+    if modes:
+        shown = "; ".join(f"{e['t']:.1f} s {e['event']}" for e in modes[:MODES_SHOWN])
+        more = f"; ... and {len(modes) - MODES_SHOWN} more" if len(modes) > MODES_SHOWN else ""
+        lines.append(f"  modes: {shown}{more}")
+    if m.get("statustext", {}).get("count"):
+        lines.append(f"  vehicle texts: {m['statustext']['count']} STATUSTEXT ({m['statustext']['warnings']} "
+                     "warnings or worse)")
+    return lines
+
+
+def _what(m: dict) -> str:
+    source = m.get("source", {})
+    tlog = source.get("tlog")
+    read = "" if tlog is None else (f"; {tlog['messages']} messages" + ("" if tlog["complete"] else
+                                                                        ", DAMAGED or TRUNCATED (see the warning)"))
+    return f"{source.get('kind')}{read}"
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def _num(v, fmt: str) -> str:
+    return format(v, fmt) if _finite(v) else "n/a"
+
+
+def _cm(v) -> str:
+    return f"{v * 100:.2f} cm" if _finite(v) else "n/a"
+
+
+def _percent(v) -> str:
+    return f"{100 * v:.1f} %"
+
+
+def _plain(value):
+    """JSON-ready: NaN and infinities become null (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

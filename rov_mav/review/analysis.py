@@ -1,0 +1,157 @@
+"""The figures of a dive that need no mission: loop timing, telemetry gaps, thruster saturation, battery, modes.
+
+Pure functions of a `Dive`'s arrays. Times are vehicle seconds since boot; the log's own (wall) times are mapped
+onto them through the vehicle's timestamps (`vehicle_time`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rov_mav.flight.actuation import PWM_TOLERANCE
+from rov_mav.flight.link import CHANNELS, mode_name
+from rov_mav.review.dive import Dive
+
+STALE_PERIODS = 3.0                 # the runner's watchdog: telemetry older than 3 periods is stale
+PWM_LIMITS = (1100.0, 1900.0)       # us: ArduSub's SERVOn_MIN / SERVOn_MAX defaults
+
+
+def vehicle_time(dive: Dive, wall: np.ndarray) -> np.ndarray:
+    """Vehicle s since boot at log (wall) times: interpolated between the vehicle's timestamped messages,
+    extrapolated at the log's mean rate (a vehicle at a speedup runs faster than the wall)."""
+    wall = np.asarray(wall, dtype=float)
+    cw, ct = dive.clock_wall, dive.clock_t
+    if cw.size == 0:
+        return wall - (wall.min() if wall.size else 0.0)
+    rate = (ct[-1] - ct[0]) / (cw[-1] - cw[0]) if cw[-1] > cw[0] and ct[-1] > ct[0] else 1.0
+    t = np.interp(wall, cw, ct)
+    t = np.where(wall < cw[0], ct[0] + (wall - cw[0]) * rate, t)
+    return np.where(wall > cw[-1], ct[-1] + (wall - cw[-1]) * rate, t)
+
+
+def armed_window(dive: Dive) -> tuple[float, float] | None:
+    """(first arming, last disarming or the log's end) in vehicle s, or None if never armed."""
+    armed = np.flatnonzero(dive.armed)
+    if not armed.size:
+        return None
+    t = vehicle_time(dive, dive.heartbeat_wall)
+    after = np.flatnonzero(~dive.armed[armed[-1]:])
+    end = t[armed[-1] + after[0]] if after.size else max(float(t[-1]), _last_time(dive))
+    return float(t[armed[0]]), float(end)
+
+
+def _last_time(dive: Dive) -> float:
+    return float(dive.clock_t.max()) if dive.clock_t.size else 0.0
+
+
+def telemetry(t: np.ndarray, stale_periods: float = STALE_PERIODS) -> dict:
+    """State samples (ATTITUDE + LOCAL_POSITION_NED pairs) at times t (s): their rate, and the gaps longer than
+    `stale_periods` typical periods (what the runner's watchdog would call stale)."""
+    if t.size < 2:
+        return {"samples": int(t.size), "rate_hz": float("nan"), "period_ms": float("nan"), "gaps": 0,
+                "max_gap_ms": float("nan"), "stale_after_ms": float("nan"), "gap_times": []}
+    dt = np.diff(t)
+    period = float(np.median(dt))
+    stale = stale_periods * period
+    gaps = np.flatnonzero(dt > stale)
+    return {"samples": int(t.size), "rate_hz": (t.size - 1) / float(t[-1] - t[0]) if t[-1] > t[0] else float("nan"),
+            "period_ms": 1e3 * period, "gaps": int(gaps.size), "max_gap_ms": 1e3 * float(dt.max()),
+            "stale_after_ms": 1e3 * stale, "gap_times": [(float(t[i]), float(dt[i])) for i in gaps]}
+
+
+def command_rates(dive: Dive, window: tuple[float, float] | None) -> list[dict]:
+    """Per station: the RC_CHANNELS_OVERRIDE and MANUAL_CONTROL it sent (within `window`, vehicle s), and their
+    rate in vehicle Hz."""
+    streams = [(sysid, "RC_CHANNELS_OVERRIDE", wall) for sysid, (wall, _) in dive.overrides.items()]
+    streams += [(sysid, "MANUAL_CONTROL", wall) for sysid, wall in dive.joysticks.items()]
+    out = []
+    for sysid, kind, wall in sorted(streams, key=lambda s: (s[0], s[1])):
+        t = vehicle_time(dive, wall)
+        if window is not None:
+            t = t[(t >= window[0]) & (t <= window[1])]
+        span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+        out.append({"sysid": int(sysid), "message": kind, "count": int(t.size),
+                    "rate_hz": (t.size - 1) / span if span > 0 else float("nan")})
+    return out
+
+
+def loop_latency(state_wall: np.ndarray, command_wall: np.ndarray) -> np.ndarray:
+    """ms from each state's arrival to the first command sent after it and before the next state (the log's own
+    clock: meaningful when the log was written by the station that sent the commands)."""
+    if state_wall.size == 0 or command_wall.size == 0:
+        return np.zeros(0)
+    commands = np.sort(command_wall)
+    k = np.searchsorted(commands, state_wall, side="left")
+    has = k < commands.size
+    following = np.where(has, commands[np.minimum(k, commands.size - 1)], np.inf)
+    next_state = np.append(state_wall[1:], np.inf)
+    answered = has & (following < next_state)
+    return 1e3 * (following[answered] - state_wall[answered])
+
+
+def loop_figures(tick_t: np.ndarray, latency_ms: np.ndarray) -> dict:
+    """The run's `loop` block: ticks, achieved rate (ticks per vehicle s), latency p50 / p99 (ms)."""
+    span = float(tick_t[-1] - tick_t[0]) if tick_t.size > 1 else 0.0
+    latency_ms = latency_ms[np.isfinite(latency_ms)]
+    return {
+        "ticks": int(tick_t.size),
+        "control_rate_hz": (tick_t.size - 1) / span if span > 0 else 0.0,
+        "latency_p50_ms": float(np.percentile(latency_ms, 50)) if latency_ms.size else float("nan"),
+        "latency_p99_ms": float(np.percentile(latency_ms, 99)) if latency_ms.size else float("nan"),
+    }
+
+
+def pwm_limits(params: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(low (8,), high (8,)) us: SERVO1..8_MIN / _MAX as the vehicle reported them, else ArduSub's defaults."""
+    low = np.array([params.get(f"SERVO{n}_MIN", PWM_LIMITS[0]) for n in range(1, CHANNELS + 1)])
+    high = np.array([params.get(f"SERVO{n}_MAX", PWM_LIMITS[1]) for n in range(1, CHANNELS + 1)])
+    return low, high
+
+
+def saturation(pwm: np.ndarray, low: np.ndarray, high: np.ndarray) -> dict:
+    """How often each of the 8 outputs (M, 8) us sat at its limits (within the runner's PWM tolerance); 0 us
+    (an output not driven) does not count."""
+    pwm = np.asarray(pwm, dtype=float).reshape(-1, CHANNELS)
+    driven = np.isfinite(pwm) & (pwm > 0)
+    at_limit = driven & ((pwm <= low + PWM_TOLERANCE) | (pwm >= high - PWM_TOLERANCE))
+    counts = np.maximum(driven.sum(axis=0), 1)
+    any_row = at_limit.any(axis=1)
+    return {"samples": int(pwm.shape[0]), "fraction_at_limit": [float(v) for v in at_limit.sum(axis=0) / counts],
+            "fraction_any_at_limit": float(any_row.mean()) if any_row.size else 0.0}
+
+
+def battery(dive: Dive) -> dict:
+    """Voltage at the start, lowest (and when, vehicle s), at the end; mAh consumed (BATTERY_STATUS, else the
+    current integrated); NaN for what the vehicle did not report."""
+    t = vehicle_time(dive, dive.power_wall)
+    v = dive.voltage
+    ok = np.isfinite(v)
+    out = {"start_v": float("nan"), "min_v": float("nan"), "min_at_s": float("nan"), "end_v": float("nan"),
+           "consumed_mah": float("nan"), "consumed_from": None}
+    if ok.any():
+        i = int(np.flatnonzero(ok)[np.argmin(v[ok])])
+        out.update(start_v=float(v[ok][0]), min_v=float(v[i]), min_at_s=float(t[i]), end_v=float(v[ok][-1]))
+    mah = dive.consumed_mah[np.isfinite(dive.consumed_mah)]
+    current = np.isfinite(dive.current)
+    if mah.size:
+        out.update(consumed_mah=float(mah[-1] - mah[0]), consumed_from="BATTERY_STATUS")
+    elif current.sum() > 1:
+        tc, a = t[current], dive.current[current]
+        out.update(consumed_mah=float(np.sum(0.5 * (a[1:] + a[:-1]) * np.diff(tc)) / 3.6),
+                   consumed_from="SYS_STATUS current")
+    return out
+
+
+def mode_changes(dive: Dive) -> list[tuple[float, str]]:
+    """(vehicle s, text): the first HEARTBEAT's state, then every change of arming or mode."""
+    t = vehicle_time(dive, dive.heartbeat_wall)
+    out, last = [], None
+    for ti, armed, mode in zip(t, dive.armed, dive.mode):
+        if last is None:
+            out.append((float(ti), f"{'armed' if armed else 'disarmed'}, {mode_name(int(mode))}"))
+        elif armed != last[0]:
+            out.append((float(ti), f"{'armed' if armed else 'disarmed'} ({mode_name(int(mode))})"))
+        elif mode != last[1]:
+            out.append((float(ti), f"mode {mode_name(int(mode))}"))
+        last = (armed, mode)
+    return out

@@ -1,0 +1,244 @@
+"""A dive as its telemetry log tells it: the vehicle's state decoded as the runner decodes the live link
+(`StateDecoder`), its outputs, battery, arming and modes, texts, parameters, the commands stations sent it, and the
+mission it held (MISSION_ITEM_INT traffic either way).
+
+`DiveRecorder.take(wall, msg)` for every message in log order, then `finish()`. The vehicle is the first system
+that sends a vehicle's HEARTBEAT (or state telemetry); what arrives before it is known is held and replayed.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rov_mav.flight.history import History
+from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
+
+HELD = 20000                 # messages held while the vehicle is not yet known
+UNSET = (0, 65535)           # RC_CHANNELS_OVERRIDE values that leave a channel alone
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    seq: int
+    frame: int
+    command: int
+    params: tuple[float, float, float, float]
+    lat: float               # deg (or local x, m, in a local frame)
+    lon: float               # deg (or local y, m)
+    alt: float               # m, in the item's frame
+
+
+@dataclass
+class Dive:
+    """The decoded log. Times are wall seconds (the log's clock) unless named `t` (vehicle s since boot)."""
+
+    vehicle: tuple[int, int] | None               # (sysid, compid)
+    vehicle_type: int | None                      # MAV_TYPE of its HEARTBEAT
+    state_t: np.ndarray                           # (N,) vehicle s of each complete state
+    state_wall: np.ndarray                        # (N,) log time its completing message was recorded
+    eta: np.ndarray                               # (N, 6)
+    nu: np.ndarray                                # (N, 6)
+    clock_wall: np.ndarray                        # (K,) log times of the vehicle's timestamped messages ...
+    clock_t: np.ndarray                           # (K,) ... and their time_boot_ms, s
+    servo_t: np.ndarray                           # (M,) SERVO_OUTPUT_RAW time_usec, s
+    servo: np.ndarray                             # (M, 8) us
+    overrides: dict[int, tuple[np.ndarray, np.ndarray]]   # sysid -> (wall (K,), channels 1-8 (K, 8), NaN = unset)
+    joysticks: dict[int, np.ndarray]              # sysid -> wall (K,) of its MANUAL_CONTROL
+    power_wall: np.ndarray                        # (P,) SYS_STATUS
+    voltage: np.ndarray                           # (P,) V (NaN when not reported)
+    current: np.ndarray                           # (P,) A (NaN when not reported)
+    consumed_wall: np.ndarray                     # (Q,) BATTERY_STATUS
+    consumed_mah: np.ndarray                      # (Q,) mAh since the vehicle booted (NaN when not reported)
+    heartbeat_wall: np.ndarray                    # (H,) the vehicle's HEARTBEATs
+    armed: np.ndarray                             # (H,) bool
+    mode: np.ndarray                              # (H,) custom_mode
+    texts: list[tuple[float, int, int, str]]      # (wall, sysid, severity, text), every station's
+    params: dict[str, float]                      # the vehicle's PARAM_VALUEs, last value of each
+    param_changes: list[tuple[float, str, float]]  # (wall, name, value) of the sets the vehicle confirmed
+    mission: list[MissionItem]                    # the last mission seen whole (else the longest partial one)
+    mission_complete: bool
+    mission_progress: list[tuple[float, str]]     # (wall, text): current item changes, items reached
+    home: object | None                           # the vehicle's last HOME_POSITION
+    origin: object | None                         # ... and GPS_GLOBAL_ORIGIN
+    counts: Counter = field(default_factory=Counter)   # messages per type
+    others: set[int] = field(default_factory=set)      # other systems on the link
+
+
+class DiveRecorder:
+    def __init__(self):
+        self.decoder = StateDecoder()
+        self.vehicle: tuple[int, int] | None = None
+        self.vehicle_type: int | None = None
+        self._held: list[tuple[float, object]] = []
+        self._states = History(t=1, wall=1, eta=6, nu=6)
+        self._clock = History(wall=1, t=1)
+        self._servo = History(t=1, pwm=CHANNELS)
+        self._power = History(wall=1, voltage=1, current=1)
+        self._consumed = History(wall=1, mah=1)
+        self._heartbeats = History(wall=1, armed=1, mode=1)
+        self._overrides: dict[int, History] = {}
+        self._joysticks: dict[int, History] = {}
+        self.texts: list[tuple[float, int, int, str]] = []
+        self.params: dict[str, float] = {}
+        self.param_changes: list[tuple[float, str, float]] = []
+        self._mission_count: int | None = None
+        self._items: dict[int, MissionItem] = {}
+        self._mission: list[MissionItem] = []
+        self._mission_complete = False
+        self._current_item: int | None = None
+        self.mission_progress: list[tuple[float, str]] = []
+        self.home = self.origin = None
+        self.counts: Counter = Counter()
+        self.others: set[int] = set()
+
+    def take(self, wall: float, msg) -> None:
+        self.counts[msg.get_type()] += 1
+        if self.vehicle is None and not self._identify(msg):
+            if len(self._held) < HELD:
+                self._held.append((wall, msg))
+            return
+        if self._held:
+            held, self._held = self._held, []
+            for w, m in held:
+                self._route(w, m)
+        self._route(wall, msg)
+
+    def finish(self) -> Dive:
+        if self._held:               # a vehicle never identified itself: nothing of it can be decoded
+            self._held = []
+        self._close_mission()
+        order = np.argsort(self._clock.column("wall"), kind="stable")
+        return Dive(
+            vehicle=self.vehicle, vehicle_type=self.vehicle_type,
+            state_t=self._states.column("t"), state_wall=self._states.column("wall"),
+            eta=self._states.column("eta"), nu=self._states.column("nu"),
+            clock_wall=self._clock.column("wall")[order], clock_t=self._clock.column("t")[order],
+            servo_t=self._servo.column("t"), servo=self._servo.column("pwm"),
+            overrides={s: (h.column("wall"), h.column("pwm")) for s, h in self._overrides.items()},
+            joysticks={s: h.column("wall") for s, h in self._joysticks.items()},
+            power_wall=self._power.column("wall"), voltage=self._power.column("voltage"),
+            current=self._power.column("current"),
+            consumed_wall=self._consumed.column("wall"), consumed_mah=self._consumed.column("mah"),
+            heartbeat_wall=self._heartbeats.column("wall"), armed=self._heartbeats.column("armed").astype(bool),
+            mode=self._heartbeats.column("mode").astype(int),
+            texts=self.texts, params=self.params, param_changes=self.param_changes,
+            mission=self._mission, mission_complete=self._mission_complete, mission_progress=self.mission_progress,
+            home=self.home, origin=self.origin, counts=self.counts, others=self.others)
+
+    # -- who is the vehicle ----------------------------------------------------------------------------------
+
+    def _identify(self, msg) -> bool:
+        kind = msg.get_type()
+        vehicle_heartbeat = kind == "HEARTBEAT" and msg.type != mavlink.MAV_TYPE_GCS and \
+            msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID
+        if not (vehicle_heartbeat or kind in STATE_MESSAGES):
+            return False
+        self.vehicle = (msg.get_srcSystem(), msg.get_srcComponent())
+        return True
+
+    def _route(self, wall: float, msg) -> None:
+        if (msg.get_srcSystem(), msg.get_srcComponent()) == self.vehicle:
+            self._from_vehicle(wall, msg)
+        else:
+            self._from_station(wall, msg)
+
+    # -- the vehicle's messages ------------------------------------------------------------------------------
+
+    def _from_vehicle(self, wall: float, msg) -> None:
+        kind = msg.get_type()
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if boot_ms is not None:
+            self._clock.append(wall=wall, t=boot_ms / 1000.0)
+        if self.decoder.update(msg):
+            state = self.decoder.state(wall)
+            self._states.append(t=state.t, wall=wall, eta=state.eta, nu=state.nu)
+        if kind == "HEARTBEAT":
+            self.vehicle_type = msg.type
+            self._heartbeats.append(wall=wall, armed=bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
+                                    mode=msg.custom_mode)
+        elif kind == "SERVO_OUTPUT_RAW":
+            self._servo.append(t=msg.time_usec / 1e6,
+                               pwm=[getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)])
+        elif kind == "SYS_STATUS":
+            voltage = np.nan if msg.voltage_battery in UNSET else msg.voltage_battery / 1000.0
+            current = np.nan if msg.current_battery < 0 else msg.current_battery / 100.0
+            self._power.append(wall=wall, voltage=voltage, current=current)
+        elif kind == "BATTERY_STATUS" and msg.id == 0:
+            self._consumed.append(wall=wall, mah=np.nan if msg.current_consumed < 0 else float(msg.current_consumed))
+        elif kind == "PARAM_VALUE":
+            name = msg.param_id
+            if msg.param_index == 65535 or (name in self.params and self.params[name] != msg.param_value):
+                self.param_changes.append((wall, name, float(msg.param_value)))
+            self.params[name] = float(msg.param_value)
+        elif kind == "STATUSTEXT":
+            self.texts.append((wall, msg.get_srcSystem(), msg.severity, msg.text))
+        elif kind == "HOME_POSITION":
+            self.home = msg
+        elif kind == "GPS_GLOBAL_ORIGIN":
+            self.origin = msg
+        elif kind == "MISSION_CURRENT" and msg.seq != self._current_item:
+            self._current_item = msg.seq
+            self.mission_progress.append((wall, f"mission: current item {msg.seq}"))
+        elif kind == "MISSION_ITEM_REACHED":
+            self.mission_progress.append((wall, f"mission: item {msg.seq} reached"))
+        self._mission_traffic(msg, kind)
+
+    # -- other stations' messages ----------------------------------------------------------------------------
+
+    def _from_station(self, wall: float, msg) -> None:
+        kind, sysid = msg.get_type(), msg.get_srcSystem()
+        self.others.add(sysid)
+        if kind == "RC_CHANNELS_OVERRIDE" and msg.target_system == self.vehicle[0]:
+            values = [getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]
+            if all(v in UNSET for v in values):
+                return
+            history = self._overrides.setdefault(sysid, History(wall=1, pwm=CHANNELS))
+            history.append(wall=wall, pwm=[np.nan if v in UNSET else v for v in values])
+        elif kind == "MANUAL_CONTROL" and msg.target == self.vehicle[0]:
+            self._joysticks.setdefault(sysid, History(wall=1)).append(wall=wall)
+        elif kind == "STATUSTEXT":
+            self.texts.append((wall, sysid, msg.severity, msg.text))
+        else:
+            self._mission_traffic(msg, kind)
+
+    # -- the mission, either way -----------------------------------------------------------------------------
+
+    def _mission_traffic(self, msg, kind: str) -> None:
+        if getattr(msg, "mission_type", 0) != mavlink.MAV_MISSION_TYPE_MISSION:
+            return
+        if kind == "MISSION_COUNT":
+            self._close_mission()
+            self._mission_count, self._items = msg.count, {}
+        elif kind == "MISSION_CLEAR_ALL":
+            self._close_mission()
+            self._mission_count, self._items = 0, {}
+            self._mission, self._mission_complete = [], True
+        elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
+            scale = 1e-7 if kind == "MISSION_ITEM_INT" and _global(msg.frame) else 1.0
+            self._items[msg.seq] = MissionItem(msg.seq, msg.frame, msg.command,
+                                               (msg.param1, msg.param2, msg.param3, msg.param4),
+                                               msg.x * scale, msg.y * scale, msg.z)
+            if self._mission_count is not None and len(self._items) == self._mission_count:
+                self._close_mission()
+
+    def _close_mission(self) -> None:
+        """Keep what was transferred: a whole mission always, a partial one only while nothing better is known."""
+        if not self._items:
+            return
+        items = [self._items[k] for k in sorted(self._items)]
+        whole = self._mission_count is not None and len(items) == self._mission_count
+        if whole or (not self._mission_complete and len(items) > len(self._mission)):
+            self._mission, self._mission_complete = items, whole
+        if whole:
+            self._mission_count, self._items = None, {}
+
+
+def _global(frame: int) -> bool:
+    """Frames whose x, y are latitude and longitude (MISSION_ITEM_INT carries them in degrees * 1e7)."""
+    return frame not in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_ENU, mavlink.MAV_FRAME_MISSION,
+                         mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_FRD, mavlink.MAV_FRAME_LOCAL_OFFSET_NED,
+                         mavlink.MAV_FRAME_BODY_OFFSET_NED)

@@ -1,0 +1,424 @@
+"""A dive reviewed: a run's log folder or any ArduSub telemetry log, measured against a mission when there is one.
+
+What it is measured against:
+- a run's log folder: the reference the controller flew (ticks.csv), or `mission` re-sampled at the ticks' times;
+- a telemetry log: `mission` from its start (`reference.mission_start`), else the vehicle's own mission (the
+  MISSION_ITEM_INT traffic in the log) as waypoints, by cross-track error; else nothing, and what needs no
+  reference is still reported (loop timing, telemetry gaps, saturation, battery, modes).
+Times in the review are vehicle seconds since the mission's start (or since the first arming, or the first state).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rov_mav.config import ConfigError
+from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.mission.metrics import run_metrics
+from rov_mav.mission.missions import Mission
+from rov_mav.offline.simulation import Trace
+from rov_mav.review import analysis
+from rov_mav.review.dive import Dive, DiveRecorder
+from rov_mav.review.logdir import RunFolder, is_run_folder, read_run_folder
+from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
+from rov_mav.review.tlog import ReadReport, read_tlog
+from rov_mav.telemetry.entities import TickColumns
+
+AUTO = 3                         # ArduSub's custom_mode of AUTO
+MATCH_TICKS = 50                 # ticks matched against the log's states to find their vehicle time
+LISTED_GAPS = 20                 # telemetry gaps put in the events one by one
+SEVERITY_LEVEL = {mavlink.MAV_SEVERITY_EMERGENCY: "ERROR", mavlink.MAV_SEVERITY_ALERT: "ERROR",
+                  mavlink.MAV_SEVERITY_CRITICAL: "ERROR", mavlink.MAV_SEVERITY_ERROR: "ERROR",
+                  mavlink.MAV_SEVERITY_WARNING: "WARNING"}
+
+
+@dataclass
+class DiveReview:
+    label: str                                    # what was read, for titles
+    name: str                                     # a short name for the default output folder
+    metrics: dict                                 # the metrics JSON
+    warnings: list[str]
+    events: list[tuple[float, str, str]]          # (t, text, level), sorted by t
+    trace: Trace | None                           # the states (the reference and the controller's internals when
+    internals: bool                               #   known: `internals`), for the figures
+    columns: TickColumns | None                   # the same for the Rerun recording
+    planned: np.ndarray | None                    # (M, 3) the vehicle's mission's waypoints
+    reference_path: np.ndarray | None             # (M, 3) what the camera frames and the planned line shows
+    thrusters: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # name -> (t, pwm (M, 8))
+    limits: tuple[np.ndarray, np.ndarray] = (np.full(CHANNELS, 1100.0), np.full(CHANNELS, 1900.0))
+    timeline: list[tuple[str, dict[str, tuple[np.ndarray, np.ndarray]]]] = field(default_factory=list)
+    marks: list[tuple[float, str]] = field(default_factory=list)    # arming and mode changes (t, text)
+
+
+def review_dive(path: str | Path, mission: Mission | None = None, start: float | None = None) -> DiveReview:
+    """Read and measure the dive at `path` (a run's log folder, or a .tlog). ConfigError (one line) when nothing
+    usable could be read."""
+    path = Path(path)
+    if path.is_dir():
+        return _review_folder(path, read_run_folder(path), mission, start)
+    if not path.exists():
+        raise ConfigError(f"{path}: no such file or folder")
+    report, dive = _read(path)
+    return _review_tlog(path, report, dive, mission, start)
+
+
+# -- reading ---------------------------------------------------------------------------------------------------
+
+def _read(path: Path) -> tuple[ReadReport, Dive]:
+    report = ReadReport(str(path), 0)
+    recorder = DiveRecorder()
+    for wall, msg in read_tlog(path, report):
+        recorder.take(wall, msg)
+    dive = recorder.finish()
+    if report.messages == 0:
+        raise ConfigError(f"{path}: no MAVLink message could be read ({report.size} bytes: not a telemetry log?)")
+    if dive.vehicle is None:
+        raise ConfigError(f"{path}: {report.messages} messages but none from a vehicle (no vehicle HEARTBEAT, "
+                          "no ATTITUDE)")
+    return report, dive
+
+
+def _read_warnings(report: ReadReport, dive: Dive, t0: float) -> list[str]:
+    """The damage and where the log stopped, in bytes and review time."""
+    out = []
+    if report.damaged or report.fixed_times or report.truncated:
+        last = None if report.last_wall is None else float(analysis.vehicle_time(dive, [report.last_wall])[0]) - t0
+        out.append(report.describe() + ("" if last is None else f"; last good record at t = {last:.2f} s"))
+    if dive.vehicle_type is not None and dive.vehicle_type != mavlink.MAV_TYPE_SUBMARINE:
+        out.append(f"the vehicle (sysid {dive.vehicle[0]}) is not a submarine (MAV_TYPE {dive.vehicle_type}): "
+                   "ArduSub's mode names may not apply")
+    return out
+
+
+# -- a telemetry log -------------------------------------------------------------------------------------------
+
+def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | None,
+                 start: float | None) -> DiveReview:
+    t0, how = mission_start(dive, start)
+    t0 = t0 if t0 is not None else 0.0
+    warnings = _read_warnings(report, dive, t0)
+    window = analysis.armed_window(dive)
+    t = dive.state_t - t0
+    trace = columns = planned = reference_path = None
+    metrics: dict = {}
+    main = _main_commander(dive, window)
+    command_t = analysis.vehicle_time(dive, dive.overrides[main][0]) if main is not None else np.zeros(0)
+    if mission is not None and t.size:
+        flown = _mission_span(t, mission.duration)
+        if not flown.any():
+            warnings.append(f"no state in the log between the mission's start (t0 = {t0:.2f} s since boot, "
+                            f"{how}) and its end: nothing to measure against it")
+        reference = mission.reference(t)
+        metrics.update(_tracking(mission.name, None, t[flown], dive.eta[flown], reference[flown, :6], None,
+                                 completed=bool(flown.any() and t[flown][-1] >= mission.duration)))
+        reference_path = mission.sampled_reference(0.1)[:, :3]
+        metrics["reference"] = {"kind": "mission", "source": mission.source, "mission_start_s": t0,
+                                "mission_start_from": how}
+    else:
+        reference = None
+        planned, labels, note = waypoint_path(dive)
+        metrics["reference"] = {"kind": "waypoints" if planned is not None else "none", "note": note,
+                                "time_zero_s": t0, "time_zero_from": how}
+        if planned is not None and t.size:
+            metrics["path"] = _path_metrics(dive, planned, labels)
+            reference_path = planned
+        elif dive.mission and planned is None:
+            warnings.append(note)
+    if t.size:
+        trace = _trace(t, dive.eta, dive.nu, reference)
+        columns = _tlog_columns(dive, t, t0, reference, command_t)
+    latency = analysis.loop_latency(dive.state_wall, dive.overrides[main][0]) if main is not None else np.zeros(0)
+    in_window = _within(command_t, window)
+    loop = analysis.loop_figures(command_t[in_window], latency)
+    loop["source"] = f"RC_CHANNELS_OVERRIDE from sysid {main} (log clock)" if main is not None else "no commands"
+    metrics["loop"] = loop
+    review = DiveReview(label=path.name, name=path.stem, metrics=metrics, warnings=warnings, events=[], trace=trace,
+                        internals=False, columns=columns, planned=planned, reference_path=reference_path)
+    commands = {} if main is None else {f"commanded (sysid {main})": (command_t[in_window] - t0,
+                                                                      dive.overrides[main][1][in_window])}
+    _dive_figures(review, dive, t0, window, commands, source="telemetry log")
+    metrics["source"] = _source(path, "telemetry log", report)
+    return review
+
+
+def _mission_span(t: np.ndarray, duration: float) -> np.ndarray:
+    """Samples from the mission's start to the first at or after its end (as the runner's last tick)."""
+    flown = t >= 0.0
+    beyond = np.flatnonzero(t >= duration)
+    if beyond.size:
+        flown &= np.arange(t.size) <= beyond[0]
+    return flown
+
+
+def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
+    """Cross-track error to the waypoints' polyline while in AUTO (else while armed), and each waypoint's closest
+    approach."""
+    modes = np.interp(dive.state_wall, dive.heartbeat_wall, dive.mode) if dive.mode.size else np.zeros(0)
+    armed = np.interp(dive.state_wall, dive.heartbeat_wall, dive.armed.astype(float)) if dive.mode.size else \
+        np.zeros(0)
+    auto = (modes == AUTO) & (armed > 0.5) if modes.size else np.zeros(dive.state_t.size, bool)
+    used = auto if auto.any() else (armed > 0.5 if armed.size and (armed > 0.5).any() else
+                                    np.ones(dive.state_t.size, bool))
+    position = dive.eta[used, :3]
+    cross = path_deviation(position, planned) if position.size else np.zeros(0)
+    closest = [float(np.min(np.linalg.norm(position - p, axis=1))) if position.size else float("nan")
+               for p in planned]
+    return {"waypoints": [[float(v) for v in p] for p in planned], "labels": labels,
+            "samples_from": "AUTO" if auto.any() else ("armed" if used.size and not used.all() else "whole log"),
+            "samples": int(position.shape[0]),
+            "rms_cross_track_m": float(np.sqrt(np.mean(cross**2))) if cross.size else float("nan"),
+            "max_cross_track_m": float(cross.max()) if cross.size else float("nan"),
+            "closest_approach_m": closest}
+
+
+def _tlog_columns(dive: Dive, t: np.ndarray, t0: float, reference: np.ndarray | None,
+                  command_t: np.ndarray) -> TickColumns:
+    """The states as ticks for Rerun; outputs, battery and link figures held at each state's time."""
+    pwm = _held(dive.servo_t - t0, dive.servo, t) if dive.servo_t.size else None
+    voltage = _held(analysis.vehicle_time(dive, dive.power_wall) - t0, dive.voltage, t) \
+        if dive.power_wall.size else None
+    age = np.diff(t, prepend=t[0])
+    window = np.searchsorted(command_t - t0, t, side="right") - np.searchsorted(command_t - t0, t - 1.0)
+    return TickColumns(t=t, eta=dive.eta, reference=reference, tau=None, tau_hat=None, s=None, gamma=None, pwm=pwm,
+                       telemetry_age=age, control_rate=window.astype(float), battery_voltage=voltage)
+
+
+def _held(t_source: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """`values` sampled at `t`, each the last known (the first before any)."""
+    order = np.argsort(t_source, kind="stable")
+    k = np.clip(np.searchsorted(t_source[order], t, side="right") - 1, 0, len(order) - 1)
+    return values[order][k]
+
+
+# -- a run's log folder ----------------------------------------------------------------------------------------
+
+def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start: float | None) -> DiveReview:
+    warnings = list(folder.warnings)
+    ticks, info = folder.ticks, folder.info
+    report = dive = None
+    if folder.tlog is not None:
+        try:
+            report, dive = _read(folder.tlog)
+        except ConfigError as exc:
+            warnings.append(str(exc))
+    has_ticks = "t" in ticks and ticks["t"].size > 0
+    if not has_ticks and dive is None:
+        raise ConfigError(f"{path}: no tick in ticks.csv and nothing readable in mavlink.tlog")
+    offset, how = (None, "")
+    if dive is not None:
+        offset, how = _tick_offset(ticks, dive) if has_ticks else mission_start(dive, start)
+        warnings += _read_warnings(report, dive, offset or 0.0)
+    metrics: dict = {}
+    trace = columns = None
+    reference_path = mission.sampled_reference(0.1)[:, :3] if mission is not None else None
+    if has_ticks:
+        t = ticks["t"]
+        eta = _block(ticks, ("x", "y", "z", "phi", "theta", "psi"))
+        reference = _block(ticks, [f"{d}{suffix}" for suffix in ("_d", "_dot_d", "_ddot_d")
+                                   for d in ("x", "y", "z", "phi", "theta", "psi")])
+        if mission is not None:
+            flying = t >= 0
+            reference[flying] = mission.reference(t[flying])
+        internals = {name: _block(ticks, [f"{name}_{w}" for w in ("X", "Y", "Z", "K", "M", "N")])
+                     for name in ("tau", "tau_hat")}
+        s, gamma = (_block(ticks, [f"{prefix}_{d}" for d in ("x", "y", "z", "phi", "theta", "psi")])
+                    for prefix in ("s", "gamma"))
+        flown = t >= 0
+        truth = info.get("true_disturbance")
+        metrics.update(_tracking(info.get("mission", mission.name if mission else "unknown"), info.get("controller"),
+                                 t[flown], eta[flown], reference[flown, :6],
+                                 {name: value[flown] for name, value in internals.items()},
+                                 completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
+                                 true_disturbance=truth))
+        latency = ticks["latency"] * 1e3 if "latency" in ticks else np.full(t.size, np.nan)
+        metrics["loop"] = {**analysis.loop_figures(t, latency), "source": "ticks.csv"}
+        metrics["reference"] = {"kind": "mission" if mission is not None else "ticks.csv",
+                                "source": mission.source if mission is not None else "ticks.csv",
+                                "mission_start_s": offset, "mission_start_from": how or "unknown (no mavlink.tlog)"}
+        nu = _block(ticks, ("u", "v", "w", "p", "q", "r"))
+        trace = Trace(t=t, eta=eta, nu=nu, reference=reference, tau=internals["tau"], tau_hat=internals["tau_hat"],
+                      s=s, gamma=gamma, true_disturbance=None if truth is None else np.array(truth, dtype=float),
+                      completed=metrics["completed"])
+        if reference_path is None:
+            reference_path = reference[flown, :3] if flown.any() else reference[:, :3]
+        columns = TickColumns(
+            t=t, eta=eta, reference=reference, tau=internals["tau"], tau_hat=internals["tau_hat"], s=s, gamma=gamma,
+            thrusts=_block(ticks, [f"thrust_{i}" for i in range(1, 9)]),
+            pwm=_block(ticks, [f"pwm_{i}" for i in range(1, 9)]),
+            true_disturbance=None if truth is None else np.broadcast_to(np.array(truth, float), (t.size, 6)),
+            progress=ticks.get("progress"), telemetry_age=ticks.get("telemetry_age"),
+            control_rate=ticks.get("control_rate"), battery_voltage=ticks.get("battery_voltage"))
+    review = DiveReview(label=path.name, name=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace,
+                        internals=has_ticks, columns=columns, planned=None, reference_path=reference_path)
+    commands = {"commanded (ticks.csv)": (ticks["t"], _block(ticks, [f"pwm_{i}" for i in range(1, 9)]))} \
+        if has_ticks else {}
+    review.events += [(t_e, text, level.upper()) for t_e, level, text in folder.events]
+    watchdog = _watchdog_from_events(folder.events)
+    if dive is not None and offset is not None:
+        window = (float(ticks["t"][0] + offset), float(ticks["t"][-1] + offset)) if has_ticks else \
+            analysis.armed_window(dive)
+        _dive_figures(review, dive, offset, window, commands, source="run log")
+    elif has_ticks:
+        review.thrusters.update(commands)
+        review.metrics["battery"] = _battery_from_ticks(ticks)
+        if dive is not None:
+            warnings.append("could not place ticks.csv in mavlink.tlog's time (no mission-start announcement and "
+                            "no tick's state found in it): figures from the telemetry log left out")
+    metrics["watchdog"] = watchdog
+    metrics["source"] = _source(path, "run log", report)
+    review.events.sort(key=lambda e: e[0])
+    return review
+
+
+def _block(ticks: dict[str, np.ndarray], names) -> np.ndarray:
+    """Columns side by side, (N, len(names)); NaN for a column the log lacks."""
+    n = ticks["t"].size
+    return np.stack([ticks.get(name, np.full(n, np.nan)) for name in names], axis=1)
+
+
+def _tick_offset(ticks: dict[str, np.ndarray], dive: Dive) -> tuple[float | None, str]:
+    """Vehicle s since boot of the ticks' t = 0: announced in the log, else found by matching ticks' states with
+    the log's (each tick's state was decoded from the log's messages)."""
+    t0, how = mission_start(dive)
+    if how.startswith("announced"):
+        return t0, how
+    eta = _block(ticks, ("x", "y", "z", "phi", "theta", "psi"))
+    offsets = []
+    for k in range(min(MATCH_TICKS, eta.shape[0])):
+        same = np.flatnonzero(np.all(np.isclose(dive.eta, eta[k], rtol=1e-7, atol=1e-9), axis=1))
+        if same.size == 1:
+            offsets.append(dive.state_t[same[0]] - ticks["t"][k])
+    if not offsets:
+        return None, ""
+    return float(np.median(offsets)), "ticks.csv's states found in mavlink.tlog"
+
+
+def _watchdog_from_events(events: list[tuple[float, str, str]]) -> dict:
+    """Stale-telemetry episodes as the run reported them (its final count when it got that far)."""
+    stale = sum(1 for _, _, text in events if text.startswith("telemetry stale"))
+    for _, _, text in events:
+        if text.startswith("watchdog: telemetry went stale"):
+            stale = int(text.split("stale ")[1].split(" ")[0])
+    return {"episodes": stale, "source": "events.csv"}
+
+
+def _battery_from_ticks(ticks: dict[str, np.ndarray]) -> dict:
+    v, t = ticks.get("battery_voltage", np.zeros(0)), ticks["t"]
+    if not v.size:
+        return {}
+    i = int(np.argmin(v))
+    return {"start_v": float(v[0]), "min_v": float(v[i]), "min_at_s": float(t[i]), "end_v": float(v[-1]),
+            "consumed_mah": float("nan"), "consumed_from": None}
+
+
+# -- shared ----------------------------------------------------------------------------------------------------
+
+def _tracking(name: str, controller: str | None, t: np.ndarray, eta: np.ndarray, eta_d: np.ndarray,
+              internals: dict[str, np.ndarray] | None, completed: bool,
+              true_disturbance: list[float] | None = None) -> dict:
+    """`run_metrics` (the JSON of `simulate` and `run`); the controller's figures are None when not logged."""
+    tau = internals["tau"] if internals else np.full_like(eta, np.nan)
+    tau_hat = internals["tau_hat"] if internals else np.zeros((0, 6))
+    truth = None if true_disturbance is None else np.array(true_disturbance, dtype=float)
+    metrics = run_metrics(name, controller, t, eta, eta_d, tau, tau_hat, truth, completed)
+    if internals is None:
+        metrics["control_effort"] = None
+    return metrics
+
+
+def _main_commander(dive: Dive, window: tuple[float, float] | None) -> int | None:
+    """The station that sent the most RC overrides (within `window`)."""
+    best, most = None, 0
+    for sysid, (wall, _) in dive.overrides.items():
+        n = int(_within(analysis.vehicle_time(dive, wall), window).sum())
+        if n > most:
+            best, most = sysid, n
+    return best
+
+
+def _within(t: np.ndarray, window: tuple[float, float] | None) -> np.ndarray:
+    return np.ones(t.size, bool) if window is None else (t >= window[0]) & (t <= window[1])
+
+
+def _trace(t: np.ndarray, eta: np.ndarray, nu: np.ndarray, reference: np.ndarray | None) -> Trace:
+    unknown = np.full((t.size, 6), np.nan)
+    return Trace(t=t, eta=eta, nu=nu, reference=reference if reference is not None else np.full((t.size, 18), np.nan),
+                 tau=unknown, tau_hat=unknown, s=unknown, gamma=unknown, true_disturbance=None, completed=True)
+
+
+def _dive_figures(review: DiveReview, dive: Dive, t0: float, window: tuple[float, float] | None,
+                  commands: dict[str, tuple[np.ndarray, np.ndarray]], source: str) -> None:
+    """What the telemetry log says whatever the reference: telemetry, commands, saturation, battery, modes, texts."""
+    m = review.metrics
+    state_t = dive.state_t[_within(dive.state_t, window)]
+    link = analysis.telemetry(state_t)
+    gaps = link.pop("gap_times")
+    m["telemetry"] = {**link, "window_s": None if window is None else [window[0] - t0, window[1] - t0]}
+    if "watchdog" not in m:
+        m["watchdog"] = {"episodes": link["gaps"], "source": f"telemetry gaps > {analysis.STALE_PERIODS:g} periods "
+                                                           f"({source})"}
+    m["commands"] = analysis.command_rates(dive, window)
+    low, high = analysis.pwm_limits(dive.params)
+    review.limits = (low, high)
+    servo_in = _within(dive.servo_t, window)
+    m["saturation"] = {"limits_us": [[float(v) for v in low], [float(v) for v in high]],
+                       "outputs": analysis.saturation(dive.servo[servo_in], low, high)}
+    for name, (_, pwm) in commands.items():
+        m["saturation"]["commands"] = {**analysis.saturation(pwm, low, high), "from": name}
+    review.thrusters = {**commands, "outputs (SERVO_OUTPUT_RAW)": (dive.servo_t - t0, dive.servo)}
+    m["battery"] = analysis.battery(dive)
+    if math.isfinite(m["battery"]["min_at_s"]):
+        m["battery"]["min_at_s"] -= t0
+    changes = [(ti - t0, text) for ti, text in analysis.mode_changes(dive)]
+    m["modes"] = [{"t": t, "event": text} for t, text in changes]
+    review.marks = changes
+    events = review.events
+    events += [(t, text, "INFO") for t, text in changes]
+    texts_t = analysis.vehicle_time(dive, [w for w, *_ in dive.texts]) - t0 if dive.texts else []
+    vehicle = dive.vehicle[0]
+    for ti, (_, sysid, severity, text) in zip(texts_t, dive.texts):
+        who = "vehicle" if sysid == vehicle else f"sysid {sysid}"
+        events.append((float(ti), f"{who}: {text}", SEVERITY_LEVEL.get(severity, "INFO")))
+    m["statustext"] = {"count": len(dive.texts), "warnings": sum(1 for _, s, sev, _ in dive.texts
+                                                                 if s == vehicle and sev <= 4)}
+    for wall, name, value in dive.param_changes:
+        events.append((float(analysis.vehicle_time(dive, [wall])[0]) - t0, f"parameter {name} = {value:g}", "INFO"))
+    for wall, text in dive.mission_progress:
+        events.append((float(analysis.vehicle_time(dive, [wall])[0]) - t0, text, "INFO"))
+    for t_gap, dt in gaps[:LISTED_GAPS]:
+        events.append((t_gap - t0, f"telemetry gap: {dt * 1e3:.0f} ms without a state", "WARNING"))
+    events.sort(key=lambda e: e[0])
+    review.timeline = _timeline(dive, t0, state_t, link["stale_after_ms"])
+    m["vehicle"] = {"sysid": vehicle, "compid": dive.vehicle[1], "type": dive.vehicle_type,
+                    "other_systems": sorted(dive.others)}
+
+
+def _timeline(dive: Dive, t0: float, state_t: np.ndarray, stale_ms: float) -> list:
+    """Panels of the timeline figure: time between states (and the watchdog's limit), battery, depth."""
+    panels = []
+    if state_t.size > 1:
+        ends = state_t[[1, -1]] - t0
+        panels.append(("state interval (ms)", {"ATTITUDE + LOCAL_POSITION_NED": (state_t[1:] - t0,
+                                                                                  1e3 * np.diff(state_t)),
+                                                "stale (3 periods)": (ends, np.full(2, stale_ms))}))
+    power_t = analysis.vehicle_time(dive, dive.power_wall) - t0
+    if np.isfinite(dive.voltage).any():
+        panels.append(("battery (V)", {"voltage": (power_t, dive.voltage)}))
+    if np.isfinite(dive.current).any():
+        panels.append(("current (A)", {"current": (power_t, dive.current)}))
+    if dive.state_t.size:
+        panels.append(("depth (m)", {"z": (dive.state_t - t0, dive.eta[:, 2])}))
+    return panels
+
+
+def _source(path: Path, kind: str, report: ReadReport | None) -> dict:
+    out: dict = {"path": str(path), "kind": kind}
+    if report is not None:
+        out["tlog"] = {"path": report.path, "bytes": report.size, "messages": report.messages,
+                       "complete": not (report.truncated or report.damaged), "read_up_to_byte": report.end,
+                       "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times}
+    return out
