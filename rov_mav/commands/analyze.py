@@ -109,9 +109,10 @@ def summary(label: str, m: dict) -> list[str]:
         lines.append(f"  tracking: no reference ({ref.get('note', 'no mission')}; --mission FILE to measure one)")
     loop = m.get("loop", {})
     if loop.get("ticks"):
-        lines.append(f"  loop: {loop['ticks']} commands at {loop['control_rate_hz']:.1f} Hz of vehicle time; "
-                     f"telemetry-in to command-out p50 {_num(loop['latency_p50_ms'], '.2f')} ms, p99 "
-                     f"{_num(loop['latency_p99_ms'], '.2f')} ms ({loop['source']})")
+        latency = f"; telemetry-in to command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 " \
+            f"{loop['latency_p99_ms']:.2f} ms" if _finite(loop["latency_p50_ms"]) else ""
+        lines.append(f"  loop: {loop['ticks']} commands at {loop['control_rate_hz']:.1f} Hz of vehicle time{latency} "
+                     f"({loop['source']})")
     if "telemetry" in m:
         tm = m["telemetry"]
         lines.append(f"  telemetry: {tm['samples']} states at {_num(tm['rate_hz'], '.1f')} Hz; {tm['gaps']} gap(s) "

@@ -131,18 +131,28 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     if t.size:
         trace = _trace(t, dive.eta, dive.nu, reference)
         columns = _tlog_columns(dive, t, t0, reference, command_t)
-    latency = analysis.loop_latency(dive.state_wall, dive.overrides[main][0]) if main is not None else np.zeros(0)
+    thrusters = main is not None and _passthrough(dive)
+    latency = analysis.loop_latency(dive.state_wall, dive.overrides[main][0]) if thrusters else np.zeros(0)
     in_window = _within(command_t, window)
     loop = analysis.loop_figures(command_t[in_window], latency)
-    loop["source"] = f"RC_CHANNELS_OVERRIDE from sysid {main} (log clock)" if main is not None else "no commands"
+    loop["source"] = "no RC overrides" if main is None else (
+        f"RC_CHANNELS_OVERRIDE from sysid {main}, " + ("thruster PWMs (RCIN passthrough); latency on the log's clock"
+                                                       if thrusters else "pilot inputs (outputs not on passthrough)"))
     metrics["loop"] = loop
     review = DiveReview(label=path.name, name=path.stem, metrics=metrics, warnings=warnings, events=[], trace=trace,
                         internals=False, columns=columns, planned=planned, reference_path=reference_path)
-    commands = {} if main is None else {f"commanded (sysid {main})": (command_t[in_window] - t0,
-                                                                      dive.overrides[main][1][in_window])}
+    commands = {} if not thrusters else {f"commanded (sysid {main})": (command_t[in_window] - t0,
+                                                                       dive.overrides[main][1][in_window])}
     _dive_figures(review, dive, t0, window, commands, source="telemetry log")
     metrics["source"] = _source(path, "telemetry log", report)
     return review
+
+
+def _passthrough(dive: Dive) -> bool:
+    """Were the thrusters on RCIN passthrough (SERVOn_FUNCTION = 50 + n) at some point, so that RC overrides are
+    thruster PWMs (as a rov-mav run sends them) rather than a pilot's inputs?"""
+    return any(name == "SERVO1_FUNCTION" and value == 51 for _, name, value in dive.param_changes) or \
+        dive.params.get("SERVO1_FUNCTION") == 51
 
 
 def _mission_span(t: np.ndarray, duration: float) -> np.ndarray:
@@ -256,7 +266,8 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                         internals=has_ticks, columns=columns, planned=None, reference_path=reference_path)
     commands = {"commanded (ticks.csv)": (ticks["t"], _block(ticks, [f"pwm_{i}" for i in range(1, 9)]))} \
         if has_ticks else {}
-    review.events += [(t_e, text, level.upper()) for t_e, level, text in folder.events]
+    review.events += _run_events(folder.events, float(ticks["t"][0]) if has_ticks else 0.0,
+                                 {text for *_, text in dive.texts} if dive is not None else set())
     watchdog = _watchdog_from_events(folder.events)
     if dive is not None and offset is not None:
         window = (float(ticks["t"][0] + offset), float(ticks["t"][-1] + offset)) if has_ticks else \
@@ -295,6 +306,19 @@ def _tick_offset(ticks: dict[str, np.ndarray], dive: Dive) -> tuple[float | None
     if not offsets:
         return None, ""
     return float(np.median(offsets)), "ticks.csv's states found in mavlink.tlog"
+
+
+def _run_events(events: list[tuple[float, str, str]], first_tick: float, vehicle_texts: set[str]
+                ) -> list[tuple[float, str, str]]:
+    """events.csv as review events: those the run wrote before its first tick (stamped 0) at the first tick, and
+    without its echoes of the vehicle's STATUSTEXT when the telemetry log has them."""
+    out, looping = [], False
+    for t, level, text in events:
+        looping = looping or t != 0.0
+        if text.startswith("vehicle: ") and text.removeprefix("vehicle: ") in vehicle_texts:
+            continue
+        out.append((t if looping else first_tick, text, level.upper()))
+    return out
 
 
 def _watchdog_from_events(events: list[tuple[float, str, str]]) -> dict:
