@@ -165,7 +165,8 @@ def _mission_span(t: np.ndarray, duration: float) -> np.ndarray:
 
 
 def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
-    """Cross-track error to the waypoints' polyline while in AUTO (else while armed), and each waypoint's closest
+    """Cross-track error to the path flown through the waypoints (from where the vehicle was when the samples start,
+    as ArduSub starts a mission from where it is) while in AUTO (else while armed), and each waypoint's closest
     approach."""
     modes = np.interp(dive.state_wall, dive.heartbeat_wall, dive.mode) if dive.mode.size else np.zeros(0)
     armed = np.interp(dive.state_wall, dive.heartbeat_wall, dive.armed.astype(float)) if dive.mode.size else \
@@ -174,7 +175,7 @@ def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
     used = auto if auto.any() else (armed > 0.5 if armed.size and (armed > 0.5).any() else
                                     np.ones(dive.state_t.size, bool))
     position = dive.eta[used, :3]
-    cross = path_deviation(position, planned) if position.size else np.zeros(0)
+    cross = path_deviation(position, np.vstack([position[:1], planned])) if position.size else np.zeros(0)
     closest = [float(np.min(np.linalg.norm(position - p, axis=1))) if position.size else float("nan")
                for p in planned]
     return {"waypoints": [[float(v) for v in p] for p in planned], "labels": labels,
@@ -443,6 +444,6 @@ def _source(path: Path, kind: str, report: ReadReport | None) -> dict:
     out: dict = {"path": str(path), "kind": kind}
     if report is not None:
         out["tlog"] = {"path": report.path, "bytes": report.size, "messages": report.messages,
-                       "complete": not (report.truncated or report.damaged), "read_up_to_byte": report.end,
+                       "complete": not (report.truncated or report.damaged or report.fixed_times), "read_up_to_byte": report.end,
                        "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times}
     return out

@@ -4,11 +4,12 @@ Mission start (vehicle s since boot): given by the user, else as a rov-mav run a
 (`runlog.mission_start_text`), else the first arming, else the first state in the log.
 
 The vehicle's mission (the items a ground station uploaded or downloaded): its positioned items (NAV_WAYPOINT,
-NAV_LOITER_*, NAV_SPLINE_WAYPOINT) in local NED, as ArduSub reads them (ArduSub/commands_logic.cpp,
-`Sub::start_command`: altitudes are relative to home, which is the surface, so depth = -altitude; lat = lon = 0 means
-where the vehicle is, here the previous waypoint). North and east are taken around the EKF origin (GPS_GLOBAL_ORIGIN,
-the origin of LOCAL_POSITION_NED), or around home placed at its own local x, y (HOME_POSITION), the way ArduPilot's
-`Location::get_distance_NE` (libraries/AP_Common/Location.cpp) does it.
+NAV_LOITER_*, NAV_SPLINE_WAYPOINT) in local NED, where ArduSub steers to them (ArduSub/commands_logic.cpp,
+`Sub::start_command`: altitudes relative to home, the surface, so d m deep is -d; lat = lon = 0 means where the
+vehicle is, here the previous waypoint). The target is placed in the EKF's frame, that of LOCAL_POSITION_NED: north
+and east around the EKF origin (GPS_GLOBAL_ORIGIN; else around home at its own local x, y) as
+`Location::get_distance_NE` computes them, and down = home's local z (HOME_POSITION) - altitude, as
+`Location::get_alt_cm` turns an altitude above home into one above the origin (libraries/AP_Common/Location.cpp).
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ def waypoint_path(dive: Dive) -> tuple[np.ndarray | None, list[str], str]:
         return None, [], (f"{len(items)} waypoints found, but neither GPS_GLOBAL_ORIGIN nor HOME_POSITION to place "
                           "them")
     lat0, lon0, north0, east0 = anchor
+    home_down = float(dive.home.z) if dive.home is not None else 0.0
     points, labels, previous = [], [], None
     for item in items:
         if item.frame not in (3, 6):        # MAV_FRAME_GLOBAL_RELATIVE_ALT(_INT): all ArduSub flies
@@ -60,14 +62,15 @@ def waypoint_path(dive: Dive) -> tuple[np.ndarray | None, list[str], str]:
         else:
             north, east = _north_east(item, lat0, lon0)
             north, east = north + north0, east + east0
-        depth = previous[2] if item.alt == 0 and previous is not None else -item.alt
+        depth = previous[2] if item.alt == 0 and previous is not None else home_down - item.alt
         previous = (north, east, depth)
         points.append(previous)
         labels.append(f"item {item.seq} ({POSITIONED[item.command]})")
     if not points:
         return None, [], "the mission's waypoints are in altitude frames ArduSub does not fly"
     whole = "" if dive.mission_complete else " (only part of the mission was in the log)"
-    return np.array(points), labels, f"the vehicle's mission: {len(points)} waypoints{whole}"
+    surface = "" if dive.home is not None else "; no HOME_POSITION: the surface taken at the EKF origin's depth"
+    return np.array(points), labels, f"the vehicle's mission: {len(points)} waypoints{whole}{surface}"
 
 
 def _anchor(dive: Dive) -> tuple[float, float, float, float] | None:

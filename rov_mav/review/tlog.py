@@ -66,8 +66,7 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
         raise ConfigError(f"{path}: {exc.strerror or exc}") from None
     report = report if report is not None else ReadReport(str(path), 0)
     report.size = path.stat().st_size
-    held: tuple[float, object] | None = None       # one record of lookahead, to judge its timestamp
-    before: float | None = None                    # wall time of the record before `held`
+    window: list[list] = []            # up to three [wall, msg] records: the middle one is judged by its neighbours
     try:
         while True:
             msg = conn.recv_msg()
@@ -83,12 +82,15 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
                 wall = _stamp_at(raw, start)
             report.end = end
             report.messages += 1
-            if held is not None:
-                before = _judged(held, before, wall, report)
-                yield before, held[1]
-            held = (wall, msg)
-        if held is not None:
-            yield _judged(held, before, None, report), held[1]
+            window.append([wall, msg])
+            if len(window) == 3:
+                _judge(window, report)
+                yield _done(window.pop(0), report)
+        if len(window) == 2 and abs(window[1][0] - window[0][0]) > TIME_JUMP:    # the last record
+            window[1][0] = window[0][0]
+            report.fixed_times += 1
+        for record in window:
+            yield _done(record, report)
     finally:
         conn.close()
         raw.close()
@@ -99,11 +101,18 @@ def _stamp_at(raw, offset: int) -> float:
     return struct.unpack(">Q", raw.read(STAMP))[0] * 1e-6
 
 
-def _judged(held: tuple[float, object], before: float | None, after: float | None, report: ReadReport) -> float:
-    """The held record's wall time, replaced by its predecessor's when it jumps away from both neighbours."""
-    wall = held[0]
-    if before is not None and abs(wall - before) > TIME_JUMP and (after is None or abs(after - before) <= TIME_JUMP):
+def _judge(window: list[list], report: ReadReport) -> None:
+    """Three consecutive records: one whose time jumps away from two neighbours that agree takes the time of the
+    one before it (the first record of a file, of the one after; the last, of the one before)."""
+    (a, _), (b, _), (c, _) = window
+    if abs(b - a) > TIME_JUMP and abs(c - a) <= TIME_JUMP:
+        window[1][0] = a
         report.fixed_times += 1
-        wall = before
-    report.last_wall = wall
-    return wall
+    elif abs(a - b) > TIME_JUMP and abs(c - b) <= TIME_JUMP and report.last_wall is None:
+        window[0][0] = b
+        report.fixed_times += 1
+
+
+def _done(record: list, report: ReadReport) -> tuple[float, object]:
+    report.last_wall = record[0]
+    return record[0], record[1]
