@@ -78,7 +78,7 @@ def _read(path: Path) -> tuple[ReadReport, Dive]:
         raise ConfigError(f"{path}: no MAVLink message could be read ({report.size} bytes: not a telemetry log?)")
     if dive.vehicle is None:
         raise ConfigError(f"{path}: {report.messages} messages but none from a vehicle (no vehicle HEARTBEAT, "
-                          "no ATTITUDE)")
+                          "no ATTITUDE): not a telemetry log of a dive?")
     return report, dive
 
 
