@@ -201,8 +201,9 @@ def test_ardusub_flying_its_own_mission_in_auto(tmp_path):
     assert m["reference"]["kind"] == "waypoints"
     p = m["path"]
     # Where ArduSub put them: north/east around the EKF origin, 2 m below home.
-    home_down = np.array(p["waypoints"])[:, 2] - 2.0
-    assert np.array(p["waypoints"])[:, :2] == pytest.approx([[0, 0], [4, 0], [4, 4]], abs=0.02)
+    waypoints = np.array(p["waypoints"])
+    home_down = waypoints[:, 2] - 2.0
+    assert waypoints[:, :2].ravel() == pytest.approx([0, 0, 4, 0, 4, 4], abs=0.02)
     assert np.ptp(home_down) == 0 and abs(home_down[0]) < 0.6
     assert p["samples_from"] == "AUTO"
     assert max(p["closest_approach_m"]) < 0.5 and p["rms_cross_track_m"] < 0.5
