@@ -6,10 +6,9 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 
-from rov_mav.commands.common import add_rerun_option, rerun_recording
-from rov_mav.config import ConfigError
+from rov_mav.commands.arguments import number, output_file, output_folder, require_writable
+from rov_mav.commands.common import add_rerun_option, check_rerun_output, rerun_recording
 
 DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, mavlink.tlog) or any ArduSub telemetry log
@@ -43,12 +42,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("path", metavar="PATH", help="a run's --log folder, or a telemetry log (.tlog)")
     p.add_argument("--mission", metavar="FILE", help="mission YAML to measure the dive against")
-    p.add_argument("--mission-start", type=float, metavar="S",
+    p.add_argument("--mission-start", type=number(0.0), metavar="S",
                    help="vehicle seconds since boot at which the mission started (default: as the rov-mav run "
                         "announced it, else the first arming)")
     p.add_argument("--vehicle", metavar="FILE", help="vehicle YAML drawn in the recording (default: BlueROV2 Heavy)")
-    p.add_argument("--out", metavar="DIR", help="folder for the figures and recording (default: out/analyze-NAME)")
-    p.add_argument("--metrics", metavar="FILE", help="write the metrics JSON here (default: DIR/metrics.json)")
+    p.add_argument("--out", type=output_folder, metavar="DIR",
+                   help="folder for the figures and recording (default: out/analyze-NAME)")
+    p.add_argument("--metrics", type=output_file, metavar="FILE",
+                   help="write the metrics JSON here (default: DIR/metrics.json)")
     add_rerun_option(p)
     p.set_defaults(func=main)
 
@@ -57,18 +58,15 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav import telemetry
     from rov_mav.mission.missions import load_mission
     from rov_mav.model.vehicle import load_vehicle
-    from rov_mav.review.dive_review import review_dive
+    from rov_mav.review.dive_review import dive_name, review_dive
     from rov_mav.review.outputs import record, write_figures
 
     mission = load_mission(args.mission) if args.mission else None
     vehicle = load_vehicle(args.vehicle)
+    out_dir = require_writable(args.out or f"out/analyze-{dive_name(args.path)}", folder=True, option="--out")
+    metrics_path = require_writable(args.metrics or out_dir / "metrics.json", folder=False, option="--metrics")
+    check_rerun_output(args, out_dir / "dive.rrd")
     review = review_dive(args.path, mission, args.mission_start)
-    out_dir = Path(args.out or f"out/analyze-{review.name}")
-    metrics_path = Path(args.metrics) if args.metrics else out_dir / "metrics.json"
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ConfigError(f"--out {out_dir}: exists and is not a folder")
-    if metrics_path.is_dir():
-        raise ConfigError(f"--metrics {metrics_path}: is a folder, expected a file name")
     figures = write_figures(review, out_dir)
     metrics_path.parent.mkdir(parents=True, exist_ok=True)
     metrics_path.write_text(json.dumps(_plain(review.metrics), indent=2) + "\n")

@@ -23,7 +23,7 @@ from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis
 from rov_mav.review.dive import Dive, DiveRecorder
-from rov_mav.review.logdir import RunFolder, is_run_folder, read_run_folder
+from rov_mav.review.logdir import RunFolder, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
 from rov_mav.review.tlog import ReadReport, read_tlog
 from rov_mav.telemetry.entities import TickColumns
@@ -39,7 +39,6 @@ SEVERITY_LEVEL = {mavlink.MAV_SEVERITY_EMERGENCY: "ERROR", mavlink.MAV_SEVERITY_
 @dataclass
 class DiveReview:
     label: str                                    # what was read, for titles
-    name: str                                     # a short name for the default output folder
     metrics: dict                                 # the metrics JSON
     warnings: list[str]
     events: list[tuple[float, str, str]]          # (t, text, level), sorted by t
@@ -54,14 +53,18 @@ class DiveReview:
     marks: list[tuple[float, str]] = field(default_factory=list)    # arming and mode changes (t, text)
 
 
+def dive_name(path: str | Path) -> str:
+    """A short name for what `path` holds: a log folder's name, a log file's name without its suffix."""
+    path = Path(path)
+    return path.name if path.is_dir() else path.stem
+
+
 def review_dive(path: str | Path, mission: Mission | None = None, start: float | None = None) -> DiveReview:
     """Read and measure the dive at `path` (a run's log folder, or a .tlog). ConfigError (one line) when nothing
     usable could be read."""
     path = Path(path)
     if path.is_dir():
         return _review_folder(path, read_run_folder(path), mission, start)
-    if not path.exists():
-        raise ConfigError(f"{path}: no such file or folder")
     report, dive = _read(path)
     return _review_tlog(path, report, dive, mission, start)
 
@@ -85,7 +88,7 @@ def _read(path: Path) -> tuple[ReadReport, Dive]:
 def _read_warnings(report: ReadReport, dive: Dive, t0: float) -> list[str]:
     """The damage and where the log stopped, in bytes and review time."""
     out = []
-    if report.damaged or report.fixed_times or report.truncated:
+    if not report.complete:
         last = None if report.last_wall is None else float(analysis.vehicle_time(dive, [report.last_wall])[0]) - t0
         out.append(report.describe() + ("" if last is None else f"; last good record at t = {last:.2f} s"))
     if dive.vehicle_type is not None and dive.vehicle_type != mavlink.MAV_TYPE_SUBMARINE:
@@ -139,8 +142,8 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
         f"RC_CHANNELS_OVERRIDE from sysid {main}, " + ("thruster PWMs (RCIN passthrough); latency on the log's clock"
                                                        if thrusters else "pilot inputs (outputs not on passthrough)"))
     metrics["loop"] = loop
-    review = DiveReview(label=path.name, name=path.stem, metrics=metrics, warnings=warnings, events=[], trace=trace,
-                        internals=False, columns=columns, planned=planned, reference_path=reference_path)
+    review = DiveReview(label=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace, internals=False,
+                        columns=columns, planned=planned, reference_path=reference_path)
     commands = {} if not thrusters else {f"commanded (sysid {main})": (command_t[in_window] - t0,
                                                                        dive.overrides[main][1][in_window])}
     _dive_figures(review, dive, t0, window, commands, source="telemetry log")
@@ -263,7 +266,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
             true_disturbance=None if truth is None else np.broadcast_to(np.array(truth, float), (t.size, 6)),
             progress=ticks.get("progress"), telemetry_age=ticks.get("telemetry_age"),
             control_rate=ticks.get("control_rate"), battery_voltage=ticks.get("battery_voltage"))
-    review = DiveReview(label=path.name, name=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace,
+    review = DiveReview(label=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace,
                         internals=has_ticks, columns=columns, planned=None, reference_path=reference_path)
     commands = {"commanded (ticks.csv)": (ticks["t"], _block(ticks, [f"pwm_{i}" for i in range(1, 9)]))} \
         if has_ticks else {}
@@ -444,6 +447,6 @@ def _source(path: Path, kind: str, report: ReadReport | None) -> dict:
     out: dict = {"path": str(path), "kind": kind}
     if report is not None:
         out["tlog"] = {"path": report.path, "bytes": report.size, "messages": report.messages,
-                       "complete": not (report.truncated or report.damaged or report.fixed_times), "read_up_to_byte": report.end,
+                       "complete": report.complete, "read_up_to_byte": report.end,
                        "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times}
     return out

@@ -1,7 +1,8 @@
 """A run's `--log` folder read back: ticks.csv (what the controller saw and did, every tick), events.csv, run.json.
 
-Each CSV is read as far as it goes: the first row that is not whole (a run killed while writing) ends it, and the
-reader says at which line and byte.
+Each file is read as far as it goes: the first row that is not whole (a run killed while writing) ends it, and the
+reader says at which line and byte. ticks.csv is streamed (an hour at 50 Hz is ~200 MB of text); a FIFO or device
+in a file's place is refused, never opened.
 """
 
 from __future__ import annotations
@@ -14,20 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from rov_mav import config
 from rov_mav.config import ConfigError
 from rov_mav.flight.runlog import RUN_INFO
+from rov_mav.review.tlog import regular_file
 
 TICKS, EVENTS, TLOG = "ticks.csv", "events.csv", "mavlink.tlog"
-
-
-@dataclass
-class CsvRead:
-    """A CSV read as far as it goes: rows, and where it stopped if it did not reach the end."""
-
-    path: Path
-    header: list[str]
-    rows: list[list[str]]
-    stopped: str | None = None       # "line N (byte B): why"
+EVENTS_LIMIT = 64 << 20          # bytes: a run writes a few hundred lines of events
+CHUNK = 10_000                   # tick rows converted to an array at a time
 
 
 @dataclass
@@ -39,77 +34,90 @@ class RunFolder:
     warnings: list[str]
 
 
-def is_run_folder(path: Path) -> bool:
-    return path.is_dir() and any((path / name).exists() for name in (TICKS, EVENTS, TLOG))
-
-
 def read_run_folder(path: Path) -> RunFolder:
     """ConfigError if `path` is not a run's log folder."""
-    if not is_run_folder(path):
+    if not any((path / name).exists() for name in (TICKS, EVENTS, TLOG)):
         raise ConfigError(f"{path}: not a run's log folder (no {TICKS}, {EVENTS} or {TLOG} in it)")
     warnings: list[str] = []
     ticks: dict[str, np.ndarray] = {}
     if (path / TICKS).exists():
-        read = _read_csv(path / TICKS, float_columns=True)
-        if read.stopped:
-            warnings.append(f"{read.path}: read {len(read.rows)} ticks, STOPPED at {read.stopped}")
-        values = np.array(read.rows, dtype=float).reshape(len(read.rows), len(read.header))
-        ticks = {name: values[:, i] for i, name in enumerate(read.header)}
+        ticks, stopped = read_ticks(path / TICKS)
+        rows = ticks["t"].size if "t" in ticks else 0
+        if stopped:
+            warnings.append(f"{path / TICKS}: read {rows} ticks, STOPPED at {stopped}")
     events: list[tuple[float, str, str]] = []
     if (path / EVENTS).exists():
-        read = _read_csv(path / EVENTS, float_columns=False)
-        if read.stopped:
-            warnings.append(f"{read.path}: read {len(read.rows)} events, STOPPED at {read.stopped}")
-        events = [(float(t), level, text) for t, level, text in read.rows]
+        events, stopped = read_events(path / EVENTS)
+        if stopped:
+            warnings.append(f"{path / EVENTS}: read {len(events)} events, STOPPED at {stopped}")
     info: dict = {}
     if (path / RUN_INFO).exists():
         try:
-            info = json.loads((path / RUN_INFO).read_text())
-        except (OSError, ValueError) as exc:
+            info = json.loads(config.read_text(path / RUN_INFO, kind="JSON"))
+        except (ConfigError, ValueError) as exc:
             warnings.append(f"{path / RUN_INFO}: unreadable ({exc}); the mission's name and controller are unknown")
     tlog = path / TLOG if (path / TLOG).exists() else None
     return RunFolder(ticks, events, info if isinstance(info, dict) else {}, tlog, warnings)
 
 
-def _read_csv(path: Path, float_columns: bool) -> CsvRead:
-    """Rows with as many fields as the header (all numbers when `float_columns`; else a number first), until the
-    first that is not."""
-    try:
-        text = path.read_bytes().decode("utf-8", errors="replace")
-    except OSError as exc:
-        raise ConfigError(f"{path}: {exc.strerror or exc}") from None
-    lines = text.splitlines(keepends=True)
-    if not lines:
-        return CsvRead(path, [], [], "line 1 (byte 0): empty file")
-    starts = np.cumsum([0] + [len(line.encode()) for line in lines])     # byte offset of each line
-    header = next(csv.reader([lines[0]]))
-    rows: list[list[str]] = []
-    reader = csv.reader(io.StringIO("".join(lines[1:])))
-    consumed = 0                                                         # data lines read so far
-    while True:
-        where = f"line {consumed + 2} (byte {starts[consumed + 1]})"
-        try:
-            row = next(reader)
-        except StopIteration:
-            return CsvRead(path, header, rows)
-        except csv.Error as exc:
-            return CsvRead(path, header, rows, f"{where}: {exc}")
-        consumed = reader.line_num
-        whole = consumed < len(lines) - 1 or text.endswith(("\n", "\r"))
-        why = _invalid(row, len(header), float_columns, whole)
-        if why:
-            return CsvRead(path, header, rows, f"{where}: {why}")
-        rows.append(row)
+def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
+    """ticks.csv's columns, and where it stopped ("line N (byte B): why") if not at its end."""
+    header_columns: list[str] = []
+    chunks: list[np.ndarray] = []
+    rows: list[list[float]] = []
+    stopped = None
+    with open(regular_file(path), "rb") as f:
+        first = f.readline()
+        header_columns = first.decode("utf-8", errors="replace").strip().split(",")
+        if "t" not in header_columns:
+            return {}, "line 1 (byte 0): no 't' column: not a run's ticks file"
+        width, offset = len(header_columns), len(first)
+        for line, raw in enumerate(f, start=2):
+            why = _invalid(raw, width)
+            if why is not None:
+                stopped = f"line {line} (byte {offset}): {why}"
+                break
+            rows.append([float(v) for v in raw.split(b",")])
+            offset += len(raw)
+            if len(rows) == CHUNK:
+                chunks.append(np.array(rows))
+                rows = []
+    chunks.append(np.array(rows, dtype=float).reshape(len(rows), width))
+    values = np.concatenate(chunks)
+    return {name: values[:, i] for i, name in enumerate(header_columns)}, stopped
 
 
-def _invalid(row: list[str], width: int, float_columns: bool, complete: bool) -> str | None:
-    if not complete:
+def _invalid(raw: bytes, width: int) -> str | None:
+    if not raw.endswith(b"\n"):
         return "the last row is cut short (no end of line)"
-    if len(row) != width:
-        return f"{len(row)} fields, expected {width}"
+    fields = raw.split(b",")
+    if len(fields) != width:
+        return f"{len(fields)} fields, expected {width}"
     try:
-        for value in (row if float_columns else row[:1]):
+        for value in fields:
             float(value)
     except ValueError:
-        return f"'{value}' is not a number"
+        return f"'{value.strip().decode('utf-8', errors='replace')[:20]}' is not a number"
     return None
+
+
+def read_events(path: Path) -> tuple[list[tuple[float, str, str]], str | None]:
+    """events.csv's (t, level, text) rows, and where it stopped if not at its end."""
+    text = config.read_bytes(path, EVENTS_LIMIT).decode("utf-8", errors="replace")
+    reader = csv.reader(io.StringIO(text, newline=""))
+    events: list[tuple[float, str, str]] = []
+    try:
+        next(reader, None)                                   # the header
+        for row in reader:
+            if len(row) != 3:
+                return events, f"line {reader.line_num}: {len(row)} fields, expected 3"
+            try:
+                events.append((float(row[0]), row[1], row[2]))
+            except ValueError:
+                return events, f"line {reader.line_num}: '{row[0][:20]}' is not a time"
+    except csv.Error as exc:
+        return events, f"line {reader.line_num}: {exc}"
+    if events and not text.endswith(("\n", "\r")):
+        events.pop()
+        return events, f"line {reader.line_num}: the last row is cut short (no end of line)"
+    return events, None

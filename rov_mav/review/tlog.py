@@ -9,6 +9,7 @@ mark where the file stopped. A timestamp far from both its neighbours (a flipped
 
 from __future__ import annotations
 
+import stat
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -38,6 +39,11 @@ class ReadReport:
     def truncated(self) -> bool:
         return self.end < self.size
 
+    @property
+    def complete(self) -> bool:
+        """Read whole: nothing damaged, nothing cut."""
+        return not (self.truncated or self.damaged or self.fixed_times)
+
     def describe(self) -> str:
         """One line: complete, or where it was damaged and where it stopped."""
         parts = [f"{self.path}: {self.messages} messages in {self.size} bytes"]
@@ -56,14 +62,14 @@ class ReadReport:
 def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tuple[float, object]]:
     """(wall time s, message) for every whole record of the file, in order; `report` (if given) is filled in as it
     goes. ConfigError when the file cannot be opened or is a dataflash log."""
-    path = Path(path)
+    path = regular_file(path)
     if path.suffix.lower() in DATAFLASH:
         raise ConfigError(f"{path}: a dataflash log (the vehicle's .bin); analyze reads telemetry logs (.tlog)")
     try:
         conn = mavutil.mavlink_connection(str(path), robust_parsing=True)
         raw = open(path, "rb")
     except OSError as exc:
-        raise ConfigError(f"{path}: {exc.strerror or exc}") from None
+        raise ConfigError(f"{path}: cannot open: {(exc.strerror or str(exc)).lower()}") from None
     report = report if report is not None else ReadReport(str(path), 0)
     report.size = path.stat().st_size
     window: list[list] = []            # up to three [wall, msg] records: the middle one is judged by its neighbours
@@ -94,6 +100,21 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
     finally:
         conn.close()
         raw.close()
+
+
+def regular_file(path: str | Path) -> Path:
+    """`path` if it is a regular file; ConfigError otherwise (a FIFO or device is refused, never opened: reading
+    it could wait forever)."""
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file or folder") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot open: {(exc.strerror or str(exc)).lower()}") from None
+    if not stat.S_ISREG(mode):
+        raise ConfigError(f"{path}: not a regular file (a device, FIFO or socket)")
+    return path
 
 
 def _stamp_at(raw, offset: int) -> float:
