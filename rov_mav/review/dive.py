@@ -65,7 +65,7 @@ class Dive:
     home: object | None                           # the vehicle's last HOME_POSITION
     origin: object | None                         # ... and GPS_GLOBAL_ORIGIN
     counts: Counter = field(default_factory=Counter)   # messages per type
-    others: set[int] = field(default_factory=set)      # other systems on the link
+    others: set[int] = field(default_factory=set)      # other systems (sysids) on the link
 
 
 class DiveRecorder:
@@ -191,7 +191,8 @@ class DiveRecorder:
 
     def _from_station(self, wall: float, msg) -> None:
         kind, sysid = msg.get_type(), msg.get_srcSystem()
-        self.others.add(sysid)
+        if sysid != self.vehicle[0]:
+            self.others.add(sysid)
         if kind == "RC_CHANNELS_OVERRIDE" and msg.target_system == self.vehicle[0]:
             values = [getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]
             if all(v in UNSET for v in values):

@@ -171,18 +171,19 @@ def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
     """Cross-track error to the path flown through the waypoints (from where the vehicle was when the samples start,
     as ArduSub starts a mission from where it is) while in AUTO (else while armed), and each waypoint's closest
     approach."""
-    modes = np.interp(dive.state_wall, dive.heartbeat_wall, dive.mode) if dive.mode.size else np.zeros(0)
-    armed = np.interp(dive.state_wall, dive.heartbeat_wall, dive.armed.astype(float)) if dive.mode.size else \
-        np.zeros(0)
-    auto = (modes == AUTO) & (armed > 0.5) if modes.size else np.zeros(dive.state_t.size, bool)
-    used = auto if auto.any() else (armed > 0.5 if armed.size and (armed > 0.5).any() else
-                                    np.ones(dive.state_t.size, bool))
+    if dive.mode.size:
+        mode = _held(dive.heartbeat_wall, dive.mode, dive.state_wall)
+        armed = _held(dive.heartbeat_wall, dive.armed, dive.state_wall)
+    else:
+        mode, armed = np.zeros(dive.state_t.size, int), np.zeros(dive.state_t.size, bool)
+    auto = (mode == AUTO) & armed
+    used = auto if auto.any() else armed if armed.any() else np.ones(dive.state_t.size, bool)
     position = dive.eta[used, :3]
     cross = path_deviation(position, np.vstack([position[:1], planned])) if position.size else np.zeros(0)
     closest = [float(np.min(np.linalg.norm(position - p, axis=1))) if position.size else float("nan")
                for p in planned]
     return {"waypoints": [[float(v) for v in p] for p in planned], "labels": labels,
-            "samples_from": "AUTO" if auto.any() else ("armed" if used.size and not used.all() else "whole log"),
+            "samples_from": "AUTO" if auto.any() else "armed" if armed.any() else "whole log",
             "samples": int(position.shape[0]),
             "rms_cross_track_m": float(np.sqrt(np.mean(cross**2))) if cross.size else float("nan"),
             "max_cross_track_m": float(cross.max()) if cross.size else float("nan"),
@@ -243,7 +244,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                     for prefix in ("s", "gamma"))
         flown = t >= 0
         truth = info.get("true_disturbance")
-        metrics.update(_tracking(info.get("mission", mission.name if mission else "unknown"), info.get("controller"),
+        metrics.update(_tracking(mission.name if mission else info.get("mission", "unknown"), info.get("controller"),
                                  t[flown], eta[flown], reference[flown, :6],
                                  {name: value[flown] for name, value in internals.items()},
                                  completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
@@ -297,7 +298,7 @@ def _block(ticks: dict[str, np.ndarray], names) -> np.ndarray:
 
 def _tick_offset(ticks: dict[str, np.ndarray], dive: Dive) -> tuple[float | None, str]:
     """Vehicle s since boot of the ticks' t = 0: announced in the log, else found by matching ticks' states with
-    the log's (each tick's state was decoded from the log's messages)."""
+    the log's (a tick's state is the log's, unless the run read a newer attitude in the same batch)."""
     t0, how = mission_start(dive)
     if how.startswith("announced"):
         return t0, how
