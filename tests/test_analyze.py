@@ -208,10 +208,11 @@ def test_ardusub_flying_its_own_mission_in_auto(tmp_path):
     m = json.loads((tmp_path / "review" / "metrics.json").read_text())
     assert m["reference"]["kind"] == "waypoints"
     p = m["path"]
-    # Where ArduSub put them: north/east around the EKF origin, 2 m below home.
+    # Where ArduSub put them: north/east around the EKF origin (within the tangent plane's 0.4 % and MAVProxy's
+    # 1e-7 degree), 2 m below home.
     waypoints = np.array(p["waypoints"])
     home_down = waypoints[:, 2] - 2.0
-    assert waypoints[:, :2].ravel() == pytest.approx([0, 0, 4, 0, 4, 4], abs=0.02)
+    assert waypoints[:, :2].ravel() == pytest.approx([0, 0, 4, 0, 4, 4], abs=0.05)
     assert np.ptp(home_down) == 0 and abs(home_down[0]) < 0.6
     assert p["samples_from"] == "AUTO"
     assert max(p["closest_approach_m"]) < 0.5 and p["rms_cross_track_m"] < 0.5

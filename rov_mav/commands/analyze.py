@@ -8,7 +8,14 @@ import math
 import sys
 
 from rov_mav.commands.arguments import number, output_file, output_folder, require_writable
-from rov_mav.commands.common import add_rerun_option, check_rerun_output, rerun_recording
+from rov_mav.commands.common import (
+    MISSION_HELP,
+    add_plan_options,
+    add_rerun_option,
+    check_rerun_output,
+    load_mission,
+    rerun_recording,
+)
 
 DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, mavlink.tlog) or any ArduSub telemetry log
@@ -41,10 +48,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("analyze", help="review a dive from a run's log folder or any ArduSub .tlog",
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("path", metavar="PATH", help="a run's --log folder, or a telemetry log (.tlog)")
-    p.add_argument("--mission", metavar="FILE", help="mission YAML to measure the dive against")
+    p.add_argument("--mission", metavar="FILE", help=f"measure the dive against this {MISSION_HELP}")
     p.add_argument("--mission-start", type=number(0.0), metavar="S",
                    help="vehicle seconds since boot at which the mission started (default: as the rov-mav run "
                         "announced it, else the first arming)")
+    add_plan_options(p)
     p.add_argument("--vehicle", metavar="FILE", help="vehicle YAML drawn in the recording (default: BlueROV2 Heavy)")
     p.add_argument("--out", type=output_folder, metavar="DIR",
                    help="folder for the figures and recording (default: out/analyze-NAME)")
@@ -56,12 +64,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from rov_mav import telemetry
-    from rov_mav.mission.missions import load_mission
     from rov_mav.model.vehicle import load_vehicle
     from rov_mav.review.dive_review import dive_name, review_dive
     from rov_mav.review.outputs import record, write_figures
 
-    mission = load_mission(args.mission) if args.mission else None
+    mission = load_mission(args) if args.mission else None
     vehicle = load_vehicle(args.vehicle)
     out_dir = require_writable(args.out or f"out/analyze-{dive_name(args.path)}", folder=True, option="--out")
     metrics_path = require_writable(args.metrics or out_dir / "metrics.json", folder=False, option="--metrics")

@@ -244,9 +244,9 @@ def main(args: argparse.Namespace) -> int:
         if args.log:
             run_log = RunLog(args.log)
             run_log.write_run_info({
-                "mission": mission.name, "mission_file": str(Path(args.mission).resolve()),
-                "controller": settings.kind, "rate_hz": args.rate, "target": args.target or "built-in vehicle",
-                "dry_run": args.dry_run, "limits": dataclasses.asdict(limits),
+                "mission": mission.name, "mission_source": mission.source, "controller": settings.kind,
+                "rate_hz": args.rate, "target": args.target or "built-in vehicle", "dry_run": args.dry_run,
+                "limits": dataclasses.asdict(limits),
                 "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
             session.taps.append(run_log.log_mavlink)
             sinks.append(run_log)

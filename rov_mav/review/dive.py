@@ -16,20 +16,10 @@ import numpy as np
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, mavlink
 from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
+from rov_mav.mission.mission_items import MissionItem
 
 HELD = 20000                 # messages held while the vehicle is not yet known
 UNSET = (0, 65535)           # RC_CHANNELS_OVERRIDE values that leave a channel alone
-
-
-@dataclass(frozen=True)
-class MissionItem:
-    seq: int
-    frame: int
-    command: int
-    params: tuple[float, float, float, float]
-    lat: float               # deg (or local x, m, in a local frame)
-    lon: float               # deg (or local y, m)
-    alt: float               # m, in the item's frame
 
 
 @dataclass
@@ -59,7 +49,8 @@ class Dive:
     texts: list[tuple[float, int, int, str]]      # (wall, sysid, severity, text), every station's
     params: dict[str, float]                      # the vehicle's PARAM_VALUEs, last value of each
     param_changes: list[tuple[float, str, float]]  # (wall, name, value) of the sets the vehicle confirmed
-    mission: list[MissionItem]                    # the last mission seen whole (else the longest partial one)
+    mission: dict[int, MissionItem]               # seq -> item of the last mission seen whole (else the longest
+                                                  #   partial one); item 0 is home
     mission_complete: bool
     mission_progress: list[tuple[float, str]]     # (wall, text): current item changes, items reached
     home: object | None                           # the vehicle's last HOME_POSITION
@@ -87,7 +78,7 @@ class DiveRecorder:
         self.param_changes: list[tuple[float, str, float]] = []
         self._mission_count: int | None = None
         self._items: dict[int, MissionItem] = {}
-        self._mission: list[MissionItem] = []
+        self._mission: dict[int, MissionItem] = {}
         self._mission_complete = False
         self._current_item: int | None = None
         self.mission_progress: list[tuple[float, str]] = []
@@ -217,12 +208,12 @@ class DiveRecorder:
         elif kind == "MISSION_CLEAR_ALL":
             self._close_mission()
             self._mission_count, self._items = 0, {}
-            self._mission, self._mission_complete = [], True
+            self._mission, self._mission_complete = {}, True
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             scale = 1e-7 if kind == "MISSION_ITEM_INT" and _global(msg.frame) else 1.0
-            self._items[msg.seq] = MissionItem(msg.seq, msg.frame, msg.command,
-                                               (msg.param1, msg.param2, msg.param3, msg.param4),
-                                               msg.x * scale, msg.y * scale, msg.z)
+            self._items[msg.seq] = MissionItem(f"vehicle item {msg.seq}", msg.command, msg.frame,
+                                               (msg.param1, msg.param2, msg.param3, msg.param4, msg.x * scale,
+                                                msg.y * scale, msg.z))
             if self._mission_count is not None and len(self._items) == self._mission_count:
                 self._close_mission()
 
@@ -230,10 +221,9 @@ class DiveRecorder:
         """Keep what was transferred: a whole mission always, a partial one only while nothing better is known."""
         if not self._items:
             return
-        items = [self._items[k] for k in sorted(self._items)]
-        whole = self._mission_count is not None and len(items) == self._mission_count
-        if whole or (not self._mission_complete and len(items) > len(self._mission)):
-            self._mission, self._mission_complete = items, whole
+        whole = self._mission_count is not None and len(self._items) == self._mission_count
+        if whole or (not self._mission_complete and len(self._items) > len(self._mission)):
+            self._mission, self._mission_complete = dict(sorted(self._items.items())), whole
         if whole:
             self._mission_count, self._items = None, {}
 

@@ -123,7 +123,7 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
                                 "mission_start_from": how}
     else:
         reference = None
-        planned, labels, note = waypoint_path(dive)
+        planned, labels, note = waypoint_path(dive, path.name)
         metrics["reference"] = {"kind": "waypoints" if planned is not None else "none", "note": note,
                                 "time_zero_s": t0, "time_zero_from": how}
         if planned is not None and t.size:

@@ -3,27 +3,25 @@
 Mission start (vehicle s since boot): given by the user, else as a rov-mav run announced it on the link
 (`runlog.mission_start_text`), else the first arming, else the first state in the log.
 
-The vehicle's mission (the items a ground station uploaded or downloaded): its positioned items (NAV_WAYPOINT,
-NAV_LOITER_*, NAV_SPLINE_WAYPOINT) in local NED, where ArduSub steers to them (ArduSub/commands_logic.cpp,
-`Sub::start_command`: altitudes relative to home, the surface, so d m deep is -d; lat = lon = 0 means where the
-vehicle is, here the previous waypoint). The target is placed in the EKF's frame, that of LOCAL_POSITION_NED: north
-and east around the EKF origin (GPS_GLOBAL_ORIGIN; else around home at its own local x, y) as
-`Location::get_distance_NE` computes them, and down = home's local z (HOME_POSITION) - altitude, as
-`Location::get_alt_cm` turns an altitude above home into one above the origin (libraries/AP_Common/Location.cpp).
+The vehicle's mission (the items a ground station uploaded or downloaded) is read as `run --mission-from-vehicle`
+reads it (`mission.mission_items`: ArduSub's altitude convention, lat = lon = 0 for "where the vehicle is", what
+is flown and what is left out), around the EKF origin (GPS_GLOBAL_ORIGIN: the origin of LOCAL_POSITION_NED; else
+home, shifted by its own local x, y), and then placed where ArduSub steers: an altitude above home becomes one above
+the origin through home's altitude (`Location::get_alt_cm`, libraries/AP_Common/Location.cpp), so down = home's
+local z (HOME_POSITION) - altitude.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from rov_mav.config import ConfigError
 from rov_mav.flight.runlog import parse_mission_start
-from rov_mav.review.dive import Dive, MissionItem
+from rov_mav.mission.mission_items import Planned, PlanOptions, build_mission
+from rov_mav.review.dive import Dive
 
-LOCATION_SCALING_FACTOR = 0.011131884502145034     # m per 1e-7 degree of latitude (AP_Common/Location.h)
-POSITIONED = {16: "NAV_WAYPOINT", 17: "NAV_LOITER_UNLIM", 18: "NAV_LOITER_TURNS", 19: "NAV_LOITER_TIME",
-              82: "NAV_SPLINE_WAYPOINT"}
+NOMINAL_SPEED = 0.5          # m/s: the legs' speed, which does not change where they go
+SAME_POINT = 1e-3            # m: successive path points closer than this are one waypoint
 
 
 def mission_start(dive: Dive, given: float | None = None) -> tuple[float | None, str]:
@@ -41,51 +39,37 @@ def mission_start(dive: Dive, given: float | None = None) -> tuple[float | None,
     return None, "no state in the log"
 
 
-def waypoint_path(dive: Dive) -> tuple[np.ndarray | None, list[str], str]:
-    """The vehicle's mission as waypoints: (M, 3) NED (None if none can be placed), a label per waypoint, and a
-    note saying where it came from or why it could not be placed."""
-    items = [item for item in dive.mission if item.command in POSITIONED and item.seq > 0]   # item 0 is home
+def waypoint_path(dive: Dive, source: str) -> tuple[np.ndarray | None, list[str], str]:
+    """The vehicle's mission as waypoints: (M, 3) NED in the EKF's frame (None if none can be placed), a label per
+    waypoint, and a note saying what they are or why they could not be placed."""
+    items = [item for seq, item in dive.mission.items() if seq > 0]          # item 0 is home
     if not items:
-        return None, [], "no positioned mission item in the log" if dive.mission else "no mission in the log"
-    anchor = _anchor(dive)
+        return None, [], "no mission in the log"
+    anchor = dive.origin or dive.home
     if anchor is None:
-        return None, [], (f"{len(items)} waypoints found, but neither GPS_GLOBAL_ORIGIN nor HOME_POSITION to place "
-                          "them")
-    lat0, lon0, north0, east0 = anchor
-    home_down = float(dive.home.z) if dive.home is not None else 0.0
-    points, labels, previous = [], [], None
-    for item in items:
-        if item.frame not in (3, 6):        # MAV_FRAME_GLOBAL_RELATIVE_ALT(_INT): all ArduSub flies
-            continue
-        if item.lat == 0 and item.lon == 0 and previous is not None:
-            north, east = previous[0], previous[1]
-        else:
-            north, east = _north_east(item, lat0, lon0)
-            north, east = north + north0, east + east0
-        depth = previous[2] if item.alt == 0 and previous is not None else home_down - item.alt
-        previous = (north, east, depth)
-        points.append(previous)
-        labels.append(f"item {item.seq} ({POSITIONED[item.command]})")
-    if not points:
-        return None, [], "the mission's waypoints are in altitude frames ArduSub does not fly"
+        return None, [], f"{len(items)} mission items, but neither GPS_GLOBAL_ORIGIN nor HOME_POSITION to place them"
+    planned = Planned(name="vehicle_mission", source=f"{source}: the vehicle's mission", home=None,
+                      speed=NOMINAL_SPEED, speed_origin="nominal", items=items, use_yaw=False)
+    origin = (anchor.latitude * 1e-7, anchor.longitude * 1e-7)
+    try:
+        mission = build_mission(planned, PlanOptions(origin=origin, skip_unflyable=True))
+    except ConfigError as exc:
+        return None, [], f"the vehicle's mission cannot be placed: {exc}"
+    shift = np.zeros(3) if anchor is dive.origin else np.array([anchor.x, anchor.y, 0.0])
+    shift[2] = float(dive.home.z) if dive.home is not None else 0.0
+    points = [(f"{items[0].label} (start)", mission.segments[0].p0[:3])]
+    points += [(label, seg.p1[:3]) for label, seg in zip(mission.labels, mission.segments)]
+    path, labels = [], []
+    for label, point in points:
+        if not path or np.linalg.norm(point - path[-1]) > SAME_POINT:
+            path.append(point)
+            labels.append(label)
     whole = "" if dive.mission_complete else " (only part of the mission was in the log)"
     surface = "" if dive.home is not None else "; no HOME_POSITION: the surface taken at the EKF origin's depth"
-    return np.array(points), labels, f"the vehicle's mission: {len(points)} waypoints{whole}{surface}"
-
-
-def _anchor(dive: Dive) -> tuple[float, float, float, float] | None:
-    """(lat, lon in degrees of a point, its local north, east in m)."""
-    if dive.origin is not None:
-        return dive.origin.latitude * 1e-7, dive.origin.longitude * 1e-7, 0.0, 0.0
-    if dive.home is not None:
-        return dive.home.latitude * 1e-7, dive.home.longitude * 1e-7, float(dive.home.x), float(dive.home.y)
-    return None
-
-
-def _north_east(item: MissionItem, lat0: float, lon0: float) -> tuple[float, float]:
-    dlon = (item.lon - lon0 + 180.0) % 360.0 - 180.0
-    scale = max(math.cos(math.radians(0.5 * (item.lat + lat0))), 0.01)
-    return (item.lat - lat0) * 1e7 * LOCATION_SCALING_FACTOR, dlon * 1e7 * LOCATION_SCALING_FACTOR * scale
+    left_out = f"; left out: {', '.join(s.removeprefix('skipped ') for s in mission.skipped)}" if mission.skipped \
+        else ""
+    return (np.array(path) + shift, labels,
+            f"the vehicle's mission: {len(path)} waypoints{whole}{surface}{left_out}")
 
 
 def path_deviation(positions: np.ndarray, path: np.ndarray, chunk: int = 4096) -> np.ndarray:
