@@ -8,7 +8,6 @@ that sends a vehicle's HEARTBEAT (or state telemetry); what arrives before it is
 
 from __future__ import annotations
 
-from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,7 +54,6 @@ class Dive:
     mission_progress: list[tuple[float, str]]     # (wall, text): current item changes, items reached
     home: object | None                           # the vehicle's last HOME_POSITION
     origin: object | None                         # ... and GPS_GLOBAL_ORIGIN
-    counts: Counter = field(default_factory=Counter)   # messages per type
     others: set[int] = field(default_factory=set)      # other systems (sysids) on the link
 
 
@@ -83,11 +81,9 @@ class DiveRecorder:
         self._current_item: int | None = None
         self.mission_progress: list[tuple[float, str]] = []
         self.home = self.origin = None
-        self.counts: Counter = Counter()
         self.others: set[int] = set()
 
     def take(self, wall: float, msg) -> None:
-        self.counts[msg.get_type()] += 1
         if self.vehicle is None and not self._identify(msg):
             if len(self._held) < HELD:
                 self._held.append((wall, msg))
@@ -99,8 +95,7 @@ class DiveRecorder:
         self._route(wall, msg)
 
     def finish(self) -> Dive:
-        if self._held:               # a vehicle never identified itself: nothing of it can be decoded
-            self._held = []
+        """The dive so far (messages still held, from no vehicle that identified itself, are left out)."""
         self._close_mission()
         order = np.argsort(self._clock.column("wall"), kind="stable")
         return Dive(
@@ -118,7 +113,7 @@ class DiveRecorder:
             mode=self._heartbeats.column("mode").astype(int),
             texts=self.texts, params=self.params, param_changes=self.param_changes,
             mission=self._mission, mission_complete=self._mission_complete, mission_progress=self.mission_progress,
-            home=self.home, origin=self.origin, counts=self.counts, others=self.others)
+            home=self.home, origin=self.origin, others=self.others)
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
 
