@@ -60,10 +60,11 @@ def test_sim_speedup_parameter_changes_the_pace_live():
         gcs = Gcs(running.port, 10.0)
         try:
             gcs.connect()
-            assert gcs.set_param("SIM_SPEEDUP", 20.0).param_value == 20.0
+            # down, not up: a pace a loaded 2-core machine always holds, so only the parameter can set it
+            assert gcs.set_param("SIM_SPEEDUP", 3.0).param_value == 3.0
             sim0, wall0 = gcs.sim_time_now(), time.monotonic()
-            gcs.recv("ATTITUDE", cond=lambda m: m.time_boot_ms / 1000 >= sim0 + 30.0)
+            gcs.recv("ATTITUDE", cond=lambda m: m.time_boot_ms / 1000 >= sim0 + 15.0)
             wall = time.monotonic() - wall0
         finally:
             gcs.close()
-    assert 30.0 / wall == pytest.approx(20.0, rel=0.15)
+    assert 15.0 / wall == pytest.approx(3.0, rel=0.15)

@@ -63,9 +63,11 @@ def _aborted_and_left_safe(tmp_path, mission, bridge_args: tuple[str, ...], *run
 
 
 def test_a_limit_crossed_aborts_and_restores(tmp_path):
+    # The mission's path (1 m) is within the flag's limit, which overrides the mission's, so it is accepted; the
+    # vehicle, found at 2 m, is past it at the first tick.
     mission = short_mission(tmp_path, limits="limits: {max_depth: 3.0}")
-    output = _aborted_and_left_safe(tmp_path, mission, (), "--max-depth", "0.5")   # the flag overrides the mission
-    assert "limit crossed: depth" in output and "> max_depth 0.5 m" in output
+    output = _aborted_and_left_safe(tmp_path, mission, ("--start-depth", "2"), "--max-depth", "1.5")
+    assert "limit crossed: depth" in output and "> max_depth 1.5 m" in output
 
 
 def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
