@@ -48,6 +48,21 @@ def records(path: Path) -> list[tuple[int, int, str]]:
     return out
 
 
+def end_of_record_at_mission_time(path: Path, fraction: float, duration: float) -> int:
+    """The end (byte) of the first ATTITUDE record `fraction` of the way through the announced mission."""
+    conn = mavutil.mavlink_connection(str(path))
+    t0 = None
+    try:
+        while (msg := conn.recv_msg()) is not None:
+            if msg.get_type() == "STATUSTEXT" and "mission t0 = " in msg.text:
+                t0 = float(msg.text.split("mission t0 = ")[1].split(" s")[0])
+            elif msg.get_type() == "ATTITUDE" and t0 is not None and msg.time_boot_ms / 1000 >= t0 + fraction * duration:
+                return conn.f.tell()
+    finally:
+        conn.close()
+    raise AssertionError(f"no ATTITUDE {fraction:.0%} into the mission in {path}")
+
+
 @pytest.fixture(scope="module")
 def own_run(tmp_path_factory):
     """A short mission flown by `rov-mav run --log` against the built-in vehicle: (log folder, its metrics, the
@@ -224,8 +239,7 @@ def test_ardusub_flying_its_own_mission_in_auto(tmp_path):
 def test_a_truncated_telemetry_log_is_read_as_far_as_it_goes(own_run, tmp_path):
     log, run_metrics, mission = own_run
     data = (log / "mavlink.tlog").read_bytes()
-    ends = [end for _, end, _ in records(log / "mavlink.tlog")]
-    last_whole = ends[int(len(ends) * 0.6)]
+    last_whole = end_of_record_at_mission_time(log / "mavlink.tlog", 0.6, load_mission(mission).duration)
     cut = last_whole + 8 + 3                          # into the next record's packet header
     (tmp_path / "cut.tlog").write_bytes(data[:cut])
     r = analyze(str(tmp_path / "cut.tlog"), "--mission", str(mission), "--out", str(tmp_path / "review"),

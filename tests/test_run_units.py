@@ -42,6 +42,30 @@ def test_the_state_is_in_the_body_frame_and_on_the_vehicle_clock():
     assert not decoder.update(pos)                             # a pair needs both messages again
 
 
+def test_a_lost_attitude_costs_one_sample_not_every_later_pairing():
+    """Streams at 50 Hz, ATTITUDE then LOCAL_POSITION_NED each period with the same stamp; one ATTITUDE lost, one
+    position duplicated, then a reboot: every completed state pairs messages of one period."""
+    decoder = StateDecoder()
+
+    def period(ms, x, attitude=True, position=True):
+        msgs = [mavlink.MAVLink_attitude_message(ms, 0.0, 0.0, x, 0.0, 0.0, 0.0)] if attitude else []
+        msgs += [mavlink.MAVLink_local_position_ned_message(ms, x, 0.0, 0.0, 0.0, 0.0, 0.0)] if position else []
+        return msgs
+
+    stream = []
+    for k in range(20):
+        stream += period(1000 + 20 * k, float(k), attitude=k != 5)
+        if k == 9:
+            stream += period(1000 + 20 * k, float(k), attitude=False)       # a duplicated position
+    stream += period(40, 100.0) + period(60, 101.0)                         # rebooted: a new clock
+    states = []
+    for msg in stream:
+        if decoder.update(msg):
+            states.append(decoder.state(received=0.0))
+    assert [s.eta[0] for s in states] == [k for k in range(20) if k != 5] + [100.0, 101.0]
+    assert all(s.eta[0] == s.eta[5] for s in states)                         # position and attitude of one period
+
+
 def test_the_lead_in_reaches_the_start_pose_smoothly_or_is_skipped():
     start = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
     assert approach(start + 0.01, start, 0.2) is None

@@ -2,7 +2,9 @@
 
 eta = [x, y, z (LOCAL_POSITION_NED), roll, pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
 rotated into the body frame, and ATTITUDE's body rates. A sample is complete once both messages arrived since the
-last one; its time is the newer of their time_boot_ms, so dt is vehicle time whatever the vehicle's speedup.
+last one with time_boot_ms within half a stream period of each other: a message whose partner was lost is dropped, so
+one lost packet does not pair every later position with the next period's attitude. The sample's time is the newer of
+their time_boot_ms, so dt is vehicle time whatever the vehicle's speedup.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 from rov_mav.model.dynamics import rotation
 
 STATE_MESSAGES = ("ATTITUDE", "LOCAL_POSITION_NED")
+REBOOT_MS = 1000          # a stamp this far behind the last one is a new boot, not a late packet
 
 
 @dataclass(frozen=True)
@@ -33,25 +36,45 @@ class StateDecoder:
         self.voltage: float | None = None     # V, from SYS_STATUS
         self.servo: np.ndarray | None = None  # (8,) SERVO1..8 PWM as the vehicle reports them
         self._fresh: set[str] = set()
+        self._last_ms: dict[str, int] = {}     # time_boot_ms of the latest message of each state kind
+        self._period_ms: dict[str, int] = {}   # ... and the interval before it
 
     def update(self, msg) -> bool:
         """Take one message; True when it completes a new (ATTITUDE, LOCAL_POSITION_NED) pair."""
         kind = msg.get_type()
-        if kind == "ATTITUDE":
-            self.attitude = msg
-        elif kind == "LOCAL_POSITION_NED":
-            self.position = msg
-        elif kind == "SYS_STATUS" and msg.voltage_battery not in (0, 0xFFFF):
+        if kind == "SYS_STATUS" and msg.voltage_battery not in (0, 0xFFFF):
             self.voltage = msg.voltage_battery / 1000.0
         elif kind == "SERVO_OUTPUT_RAW":
             self.servo = np.array([getattr(msg, f"servo{i}_raw") for i in range(1, 9)], dtype=float)
         if kind not in STATE_MESSAGES:
             return False
+        last = self._last_ms.get(kind)
+        if last is not None and msg.time_boot_ms < last - REBOOT_MS:
+            self._fresh.clear()               # the vehicle rebooted: pair afresh on its new clock
+            self._last_ms.clear()
+            self._period_ms.clear()
+            last = None
+        if last is not None and msg.time_boot_ms <= last:
+            return False                      # a duplicate or a late, reordered copy
+        if last is not None:
+            self._period_ms[kind] = msg.time_boot_ms - last
+        self._last_ms[kind] = msg.time_boot_ms
+        if kind == "ATTITUDE":
+            self.attitude = msg
+        else:
+            self.position = msg
+        (partner,) = (other for other in STATE_MESSAGES if other != kind)
+        if partner in self._fresh and msg.time_boot_ms - self._last_ms[partner] > self._tolerance_ms():
+            self._fresh.discard(partner)      # its own partner was lost: it starts no pair
         self._fresh.add(kind)
         if len(self._fresh) < len(STATE_MESSAGES):
             return False
         self._fresh.clear()
         return True
+
+    def _tolerance_ms(self) -> float:
+        """Half the shortest stream period seen last: the most two halves of one sample can be apart."""
+        return 0.5 * min(self._period_ms.values()) if self._period_ms else float("inf")
 
     def state(self, received: float) -> State:
         """The latest state, its completing message received at wall time `received` (both must have arrived)."""
