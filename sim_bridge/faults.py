@@ -251,6 +251,11 @@ class LinkFaults:
         return cls(Direction(spec, random.Random(f"{seed}/{channel}/up")),
                    Direction(spec, random.Random(f"{seed}/{channel}/down")))
 
+    def describe(self) -> str:
+        """What was done so far, e.g. 'to the vehicle 1200 sent, 361 lost (30.1 %); from it ...'."""
+        return "; ".join(f"{name} {d.sent} sent, {d.lost} lost ({100 * d.lost / max(d.sent, 1):.1f} %)"
+                         for name, d in (("to the vehicle", self.uplink), ("from it", self.downlink)))
+
 
 def message_id(buf: bytes) -> int:
     """The message id in an encoded MAVLink 1 or 2 frame's header (-1 if it is not one)."""

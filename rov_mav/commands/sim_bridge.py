@@ -169,4 +169,7 @@ def run(args: argparse.Namespace) -> int:
     if rejected := {link.channel: link.rejections.count for link in bridge.links if link.rejections.count}:
         print("sim-bridge: frames dropped for their signature: "
               + ", ".join(f"link {channel}: {n}" for channel, n in rejected.items()), flush=True)
+    for link in bridge.links:
+        if link.faults is not None:
+            print(f"sim-bridge: link {link.channel} faults: {link.faults.describe()}", flush=True)
     return 0

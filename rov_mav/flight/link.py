@@ -3,7 +3,10 @@
 Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and the held RC override (the
 control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
 never sees a lost link. Everything that waits for an answer pumps the link meanwhile (so heartbeats and overrides
-keep flowing) and gives up after a wall-clock timeout.
+keep flowing). A request (parameter read or set, command) is sent again while unanswered, each wait longer than the
+last (RETRY_FIRST growing by RETRY_GROWTH up to RETRY_LONGEST wall s), and given up after RETRY_BUDGET wall s, or
+sooner once the vehicle has sent nothing for SILENCE wall s: a 30 % loss each way (half the round trips fail) is
+ridden through, a vehicle that is gone is not waited for.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import os
 import secrets
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -31,8 +34,13 @@ NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
 RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
-ATTEMPTS = 3
-REPLY_TIMEOUT = 1.5             # wall s per attempt
+RETRY_FIRST = 0.3               # wall s to wait for an answer before the first resend (> a 2 x 100 ms round trip)
+RETRY_GROWTH = 1.5              # each further wait is this much longer ...
+RETRY_LONGEST = 0.5             # ... up to this many wall s
+RETRY_BUDGET = 10.0             # wall s before an unanswered request is given up
+SILENCE = 3.0                   # wall s without a message from the vehicle: it is gone, stop resending
+HEARTBEAT_CONFIRM = 2.5         # heartbeat periods to wait for one showing a command's effect, before resending it
+MAX_CONFIRMATION = 255          # COMMAND_LONG.confirmation: 0 the first time, then +1 per resend
 RECEIVE_BUFFER = 1 << 20         # bytes
 GCS_SYSID_PARAMS = ("MAV_GCS_SYSID", "SYSID_MYGCS")   # ArduSub 4.7+, before 4.7
 UNSIGNED_GRACE = 2.0            # wall s of rejected vehicle HEARTBEATs (4 signed hellos sent) before refusing
@@ -83,6 +91,7 @@ class Session:
         self._next_heartbeat = 0.0
         self._last_override_t = -1e9
         self._wall_last_heartbeat = -1e9
+        self._heard = time.monotonic()         # wall s of the vehicle's last message
         conn.message_hooks.append(self._incoming)
         conn.mav.set_send_callback(self._outgoing)
 
@@ -191,11 +200,11 @@ class Session:
     def get_params(self, names, any_of: bool = False) -> dict[str, tuple[float, int]]:
         """{name: (value, MAV_PARAM_TYPE)} for those of `names` the vehicle answered (all, or the first if any_of)."""
         found: dict[str, tuple[float, int]] = {}
-        for _ in range(ATTEMPTS):
+        for wait in self._retries():
             for name in names:
                 if name not in found:
                     self._send("param_request_read", self.vehicle.sysid, self.vehicle.compid, name.encode(), -1)
-            deadline = time.monotonic() + REPLY_TIMEOUT
+            deadline = time.monotonic() + wait
             while time.monotonic() < deadline and len(found) < len(names) and not (any_of and found):
                 for msg, _ in self._receive(0.05):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in names:
@@ -213,10 +222,10 @@ class Session:
         """PARAM_SET of every {name: (value, MAV_PARAM_TYPE)} at once, each confirmed by a PARAM_VALUE carrying the
         new value (unconfirmed ones are sent again); returns the names never confirmed."""
         left = dict(values)
-        for _ in range(ATTEMPTS):
+        for wait in self._retries():
             for name, (value, ptype) in left.items():
                 self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
-            deadline = time.monotonic() + REPLY_TIMEOUT
+            deadline = time.monotonic() + wait
             while left and (wait := deadline - time.monotonic()) > 0:
                 for msg, _ in self.poll(min(wait, 0.02)):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in left \
@@ -230,10 +239,11 @@ class Session:
     # -- commands --------------------------------------------------------------------------------------------
 
     def command(self, command: int, *params: float) -> int | None:
-        """COMMAND_LONG; the MAV_RESULT of its COMMAND_ACK, or None if none came."""
-        for attempt in range(ATTEMPTS):
-            self.fire(command, *params, confirmation=attempt)
-            ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, REPLY_TIMEOUT)
+        """COMMAND_LONG, resent with its confirmation field counting up (MAVLink's command protocol) until a
+        COMMAND_ACK comes; its MAV_RESULT, or None if none came."""
+        for attempt, wait in enumerate(self._retries()):
+            self.fire(command, *params, confirmation=min(attempt, MAX_CONFIRMATION))
+            ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, wait)
             if ack is not None:
                 return int(ack.result)
         return None
@@ -244,21 +254,28 @@ class Session:
         self._send("command_long", self.vehicle.sysid, self.vehicle.compid, command, confirmation, *p)
 
     def set_mode(self, custom_mode: int) -> bool:
-        """DO_SET_MODE, accepted and confirmed by the next HEARTBEAT."""
-        result = self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode)
-        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
-            lambda hb: hb.custom_mode == custom_mode)
+        """DO_SET_MODE, accepted and confirmed by a HEARTBEAT."""
+        return self._confirmed((mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode),
+                               lambda hb: hb.custom_mode == custom_mode)
 
     def arm(self, arm: bool) -> bool:
-        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM), accepted and confirmed by the next HEARTBEAT."""
-        result = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0)
-        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
-            lambda hb: bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == arm)
+        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM), accepted and confirmed by a HEARTBEAT."""
+        return self._confirmed((mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0),
+                               lambda hb: bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == arm)
 
-    def _heartbeat_shows(self, check) -> bool:
-        timeout = self.clock.wall_seconds(2.5 * HEARTBEAT_PERIOD) + 0.5
-        return self.wait(lambda m: m.get_type() == "HEARTBEAT" and self._from_vehicle(m) and check(m),
-                         timeout) is not None
+    def _confirmed(self, command: tuple, check) -> bool:
+        """The command accepted, then a HEARTBEAT showing `check`; sent again (it is idempotent) while no heartbeat
+        shows it, within the retry budget: under loss the ACK or the heartbeats may be the ones lost."""
+        deadline = time.monotonic() + RETRY_BUDGET
+        while True:
+            if self.command(*command) != mavlink.MAV_RESULT_ACCEPTED:
+                return False
+            timeout = self.clock.wall_seconds(HEARTBEAT_CONFIRM * HEARTBEAT_PERIOD) + 0.5
+            if self.wait(lambda m: m.get_type() == "HEARTBEAT" and self._from_vehicle(m) and check(m),
+                         timeout) is not None:
+                return True
+            if time.monotonic() >= deadline or self._silent():
+                return False
 
     def set_message_interval(self, msg_id: int, hz: float) -> bool:
         """MAV_CMD_SET_MESSAGE_INTERVAL (vehicle-time Hz); True if accepted. Not a parameter: nothing persists."""
@@ -323,6 +340,21 @@ class Session:
         self._send("heartbeat", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
         self._wall_last_heartbeat = time.perf_counter()
 
+    def _retries(self) -> Iterator[float]:
+        """Wall s to wait after each send of a request: the first always, then growing waits until the budget is
+        spent or the vehicle has gone silent."""
+        start = time.monotonic()
+        wait = RETRY_FIRST
+        while True:
+            yield wait
+            left = RETRY_BUDGET - (time.monotonic() - start)
+            if left <= 0 or self._silent():
+                return
+            wait = min(wait * RETRY_GROWTH, RETRY_LONGEST, left)
+
+    def _silent(self) -> bool:
+        return time.monotonic() - self._heard > SILENCE
+
     def _check_interrupt(self) -> None:
         if self.interrupt is not None:
             self.interrupt()
@@ -362,6 +394,7 @@ class Session:
         if self.vehicle is None:
             return
         if self._from_vehicle(msg):
+            self._heard = time.monotonic()
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:
                 self.clock.observe(boot_ms / 1000.0)
