@@ -34,7 +34,7 @@ from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
-from rov_mav.flight.telemetry_rate import measure, too_slow
+from rov_mav.flight.stream_rate import measure, too_slow
 from rov_mav.flight.tick import TickRecord
 from rov_mav.flight.vehicle_state import State, StateDecoder
 from rov_mav.mission.approach import approach

@@ -1,9 +1,9 @@
 """How fast the vehicle sends a telemetry stream, and how much of it arrives, from the vehicle's own timestamps.
 
 Over a lossy link the received rate understates what the vehicle sends: the intervals between received messages are
-whole multiples of the send period and, while less than half is lost, the commonest of them (the median) is one
-period. So the send rate is 1 / the median interval and the arriving rate is the count over the span; a duplicate or
-a reordered message (a timestamp already seen) counts once. A stream is too slow for the control loop when the
+whole multiples of the send period, and while less than 90 % is lost their 10th percentile is one period. So the send
+rate is 1 / that percentile and the arriving rate is the count over the span; a duplicate or a reordered message (a
+timestamp already seen) counts once. A stream is too slow for the control loop when the
 vehicle sends too slowly (it cannot keep up: lower the rate), or when too little of it arrives (the link).
 Pure: no I/O; times are vehicle seconds.
 """
@@ -16,6 +16,7 @@ import numpy as np
 
 SENT_TOLERANCE = 0.8          # fraction of the asked rate the vehicle must send
 ARRIVING_TOLERANCE = 0.5      # fraction of the asked rate that must arrive (30 % loss arrives at 70 %)
+PERIOD_PERCENTILE = 10        # of the intervals between received messages: one send period below 90 % loss
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,8 @@ def measure(stamps) -> StreamRate:
     t = np.unique(np.asarray(stamps, dtype=float))
     if t.size < 3 or t[-1] <= t[0]:
         return StreamRate(0.0, 0.0)
-    return StreamRate(float(1.0 / np.median(np.diff(t))), float((t.size - 1) / (t[-1] - t[0])))
+    period = np.percentile(np.diff(t), PERIOD_PERCENTILE)
+    return StreamRate(float(1.0 / period), float((t.size - 1) / (t[-1] - t[0])))
 
 
 def too_slow(name: str, rate: StreamRate, asked: float) -> str | None:
