@@ -88,12 +88,11 @@ class Bridge:
         self.links = open_links(list(self.config.endpoints), self.sub.sysid)
         self.signing.attach(self.links)
         self.signing.on_change = lambda text: print(f"sim-bridge: {text}", flush=True)
+        faults = self.config.faults
         for link in self.links:
             link.rejections.on_first = lambda rejected, link=link: print(
                 f"sim-bridge: link {link.channel} ({link.spec}): ignoring MAVLink not signed with the key (the "
                 f"first: {rejected.describe()}); counted, not reported again", file=sys.stderr, flush=True)
-        faults = self.config.faults
-        for link in self.links:
             if faults is not None and faults.applies_to(link.channel):
                 link.degrade(LinkFaults.create(faults, self.config.seed, link.channel), lambda: self.t)
         names = tuple(telemetry.BUILDERS)

@@ -14,8 +14,8 @@ Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit cross
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
 answers, say that its thrusters hold their last command. A step the vehicle did not confirm (after the session's
-retries) is named at the end, and a run that would have exited 0 exits 1. A pilot takeover does the same but leaves the vehicle
-armed, on its motors, for the pilot.
+retries) is named at the end, and a run that would have exited 0 exits 1. A pilot takeover does the same but leaves
+the vehicle armed, on its motors, for the pilot.
 """
 
 from __future__ import annotations
