@@ -60,7 +60,9 @@ class Checker:
     def fresh(self, kind: str):
         while self.conn.recv_match(blocking=False) is not None:
             pass
-        return self.request(lambda: self.conn.mav.heartbeat_send(6, 8, 0, 0, 4), kind, lambda m: True)
+        mav = mavutil.mavlink
+        return self.request(lambda: self.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                                  mav.MAV_STATE_ACTIVE), kind, lambda m: True)
 
     def param(self, name: str) -> int:
         msg = self.request(lambda: self.conn.mav.param_request_read_send(1, 1, name.encode(), -1), "PARAM_VALUE",
