@@ -1,9 +1,10 @@
 """Measure: a mission flown by `rov-mav run` against the built-in vehicle over a degraded link.
 
-For every loss (0/10/20/30 %, each way) x delay (0/50/100 ms of vehicle time, each way) it starts `rov-mav sim-bridge`
-with --link-faults on the runner's link and a second, clean link for a checker, flies the mission with `rov-mav run`
-(--metrics), then the checker reads the vehicle's end state (armed?, SERVO_OUTPUT_RAW, SERVO1..8_FUNCTION). Prints a
-markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by the
+For every loss (0/10/20/30 %, each way) x delay (0/50/100 ms of vehicle time, each way) it starts `rov-mav run`
+(--metrics) and, once the runner is up and calling, `rov-mav sim-bridge` with --link-faults on the runner's link and a
+second, clean link for a checker (so the vehicle does not drift in the mission's disturbance while the runner
+starts); after the run the checker reads the vehicle's end state (armed?, SERVO_OUTPUT_RAW, SERVO1..8_FUNCTION).
+Prints a markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by the
 bridge, end state. Run:
     .venv/bin/python tools/link_faults.py [--mission missions/square.yaml] [--speedup 10] [--jitter 0ms] [--seed 0]
 """
@@ -85,34 +86,50 @@ class Checker:
         self.conn.close()
 
 
+def runner_calling(port: int) -> None:
+    """Until the runner sends its first hello to `port` (it is then past its own start)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", port))
+        sock.settimeout(WAIT * 4)
+        sock.recvfrom(65535)
+
+
+def stop(proc: subprocess.Popen) -> str:
+    """SIGTERM (SIGKILL if it lingers); everything it printed."""
+    proc.terminate()
+    try:
+        return proc.communicate(timeout=WAIT)[0]
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.communicate()[0]
+
+
 def fly(mission: Path, loss: float, delay_ms: int, args, folder: Path) -> dict:
     """One run at this loss and delay: the figures of one table row."""
     port, clean = free_port(), free_port()
     faults = f"loss={loss:g},delay={delay_ms}ms,link=0" + (f",jitter={args.jitter}" if args.jitter else "")
-    bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
-                               f"udpin:127.0.0.1:{clean}", "--speedup", str(args.speedup), "--environment",
-                               str(mission), "--start-depth", str(args.start_depth), "--seed", str(args.seed),
-                               "--link-faults", faults],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     metrics_path = folder / f"metrics-{loss:g}-{delay_ms}.json"
-    runner = None
+    runner = subprocess.Popen([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission), "--metrics",
+                               str(metrics_path), "--rerun", "off", "--heartbeat-timeout", "60"],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    bridge = None
     try:
-        runner = subprocess.run([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission),
-                                 "--metrics", str(metrics_path), "--rerun", "off", "--heartbeat-timeout", "60"],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=RUN_WAIT)
+        runner_calling(port)
+        bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
+                                   f"udpin:127.0.0.1:{clean}", "--speedup", str(args.speedup), "--environment",
+                                   str(mission), "--start-depth", str(args.start_depth), "--seed", str(args.seed),
+                                   "--link-faults", faults],
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        output = runner.communicate(timeout=RUN_WAIT)[0]
         checker = Checker(clean)
         try:
             end = checker.end_state()
         finally:
             checker.close()
     finally:
-        bridge.terminate()
-        try:
-            bridge_out, _ = bridge.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            bridge.kill()
-            bridge_out, _ = bridge.communicate()
-    output = runner.stdout
+        if runner.poll() is None:
+            output = stop(runner)
+        bridge_out = stop(bridge) if bridge is not None else ""
     metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {}
     stale = re.search(r"telemetry went stale (\d+) time", output)
     measured = re.search(r"to the vehicle (\d+) sent, (\d+) lost .*; from it (\d+) sent, (\d+) lost", bridge_out)
