@@ -13,7 +13,6 @@ from run_helpers import (
     assert_left_safe,
     bridge_with_checker,
     checker,
-    servo_functions,
     short_mission,
 )
 
