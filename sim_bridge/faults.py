@@ -98,10 +98,14 @@ def _at(key: str, text: str, what: str) -> tuple[str, str]:
 
 def _cut(text: str) -> tuple[float, float]:
     length, start = _at("cut", text, "LENGTH")
-    duration = _duration("cut", length)
+    try:
+        duration, begin = _duration("cut", length), _duration("cut", start)
+    except FaultError:
+        raise FaultError(f"cut={text}: expected LENGTH@START, times of 0 or more with their unit, e.g. "
+                         "cut=30s@20s") from None
     if duration <= 0:
         raise FaultError(f"cut={text}: the cut must last more than 0 s")
-    return _duration("cut", start), duration
+    return begin, duration
 
 
 def _drop(text: str) -> tuple[str, float]:
@@ -109,7 +113,11 @@ def _drop(text: str) -> tuple[str, float]:
     name = name.upper()
     if name not in _MESSAGE_IDS:
         raise FaultError(f"drop={text}: {name} is not a MAVLink message (e.g. PARAM_VALUE, COMMAND_ACK)")
-    return name, _duration("drop", start)
+    try:
+        return name, _duration("drop", start)
+    except FaultError:
+        raise FaultError(f"drop={text}: expected MESSAGE@START, START a time of 0 or more with its unit, e.g. "
+                         "drop=PARAM_VALUE@40s") from None
 
 
 def _link(text: str) -> int:
@@ -161,12 +169,11 @@ def load_faults(arg: str) -> FaultSpec:
     if "=" in arg:
         return parse_faults(arg)
     path = Path(arg)
-    if not path.is_file():
-        raise FaultError(f"{arg}: no such file, and not KEY=VALUE,... (e.g. {EXAMPLE})")
     try:
         data = read_yaml(path)
     except ConfigError as exc:
-        raise FaultError(str(exc)) from None
+        hint = "" if path.exists() else f" (nor KEY=VALUE,..., e.g. {EXAMPLE})"
+        raise FaultError(f"{exc}{hint}") from None
     pairs = []
     for key, value in data.items():
         for item in value if isinstance(value, list) and key == "drop" else [value]:

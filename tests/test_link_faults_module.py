@@ -123,12 +123,14 @@ def test_a_yaml_file_holds_the_same_keys(tmp_path):
     ("delay=infs", "delay=infs: expected a time"),
     ("cut=30s", "cut=30s: expected LENGTH@START"),
     ("cut=0s@1s", "the cut must last more than 0 s"),
+    ("cut=2s@-1s", "cut=2s@-1s: expected LENGTH@START, times of 0 or more"),
+    ("drop=PARAM_VALUE@soon", "drop=PARAM_VALUE@soon: expected MESSAGE@START"),
     ("drop=NOPE@1s", "NOPE is not a MAVLink message"),
     ("link=-1", "link=-1: expected the position"),
     ("loss=0.1,loss=0.2", "loss is given twice"),
     ("speed=3", "unknown fault 'speed'"),
     ("loss=0.1,dup", "'dup': expected KEY=VALUE"),
-    ("missing.yaml", "missing.yaml: no such file"),
+    ("missing.yaml", "missing.yaml: no such file (nor KEY=VALUE"),
 ])
 def test_bad_descriptions_are_one_line_errors(text, says):
     with pytest.raises(FaultError) as err:
