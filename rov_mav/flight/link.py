@@ -4,9 +4,10 @@ Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and
 control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
 never sees a lost link. Everything that waits for an answer pumps the link meanwhile (so heartbeats and overrides
 keep flowing). A request (parameter read or set, command) is sent again while unanswered, each wait longer than the
-last (RETRY_FIRST growing by RETRY_GROWTH up to RETRY_LONGEST wall s), and given up after RETRY_BUDGET wall s, or
-sooner once the vehicle has sent nothing for SILENCE wall s: a 30 % loss each way (half the round trips fail) is
-ridden through, a vehicle that is gone is not waited for.
+last (RETRY_GROWTH, up to RETRY_LONGEST wall s), and given up after RETRY_BUDGET wall s, or sooner once the vehicle
+has sent nothing for SILENCE wall s: a 30 % loss each way (half the round trips fail) is ridden through, a vehicle
+that is gone is not waited for. The first wait is RTT_MARGIN smoothed round trips (timed on requests answered at the
+first send, as TCP times its segments: RFC 6298), within RETRY_MIN..RETRY_FIRST.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import os
 import secrets
 import socket
 import time
+import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -34,7 +36,10 @@ NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
 RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
-RETRY_FIRST = 0.3               # wall s to wait for an answer before the first resend (> a 2 x 100 ms round trip)
+RETRY_FIRST = 0.3               # wall s before the first resend while no round trip was timed (> 2 x 100 ms)
+RETRY_MIN = 0.05                # wall s: the shortest wait before a resend
+RTT_MARGIN = 3.0                # round trips to wait before the first resend
+RTT_GAIN = 0.125                # weight of a new round-trip sample in the smoothed one (RFC 6298)
 RETRY_GROWTH = 1.5              # each further wait is this much longer ...
 RETRY_LONGEST = 0.5             # ... up to this many wall s
 RETRY_BUDGET = 10.0             # wall s before an unanswered request is given up
@@ -92,6 +97,7 @@ class Session:
         self._last_override_t = -1e9
         self._wall_last_heartbeat = -1e9
         self._heard = time.monotonic()         # wall s of the vehicle's last message
+        self._rtt: float | None = None         # wall s: smoothed round trip of a request
         conn.message_hooks.append(self._incoming)
         conn.mav.set_send_callback(self._outgoing)
 
@@ -200,14 +206,17 @@ class Session:
     def get_params(self, names, any_of: bool = False) -> dict[str, tuple[float, int]]:
         """{name: (value, MAV_PARAM_TYPE)} for those of `names` the vehicle answered (all, or the first if any_of)."""
         found: dict[str, tuple[float, int]] = {}
-        for wait in self._retries():
+        sent = time.monotonic()
+        for attempt, wait in enumerate(self._retries()):
             for name in names:
                 if name not in found:
                     self._send("param_request_read", self.vehicle.sysid, self.vehicle.compid, name.encode(), -1)
             deadline = time.monotonic() + wait
             while time.monotonic() < deadline and len(found) < len(names) and not (any_of and found):
-                for msg, _ in self._receive(0.05):
+                for msg, _ in self._receive(min(0.05, wait)):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in names:
+                        if attempt == 0 and not found:
+                            self._timed(sent)
                         found[msg.param_id] = (float(msg.param_value), int(msg.param_type))
                 self._check_interrupt()
             if len(found) == len(names) or (any_of and found):
@@ -222,7 +231,8 @@ class Session:
         """PARAM_SET of every {name: (value, MAV_PARAM_TYPE)} at once, each confirmed by a PARAM_VALUE carrying the
         new value (unconfirmed ones are sent again); returns the names never confirmed."""
         left = dict(values)
-        for wait in self._retries():
+        sent = time.monotonic()
+        for attempt, wait in enumerate(self._retries()):
             for name, (value, ptype) in left.items():
                 self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
             deadline = time.monotonic() + wait
@@ -230,6 +240,8 @@ class Session:
                 for msg, _ in self.poll(min(wait, 0.02)):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in left \
                             and abs(msg.param_value - left[msg.param_id][0]) < 1e-3:
+                        if attempt == 0 and len(left) == len(values):
+                            self._timed(sent)
                         del left[msg.param_id]
                 self._check_interrupt()
             if not left:
@@ -240,11 +252,18 @@ class Session:
 
     def command(self, command: int, *params: float) -> int | None:
         """COMMAND_LONG, resent with its confirmation field counting up (MAVLink's command protocol) until a
-        COMMAND_ACK comes; its MAV_RESULT, or None if none came."""
+        COMMAND_ACK comes; its MAV_RESULT, or None if none came. After a resend, the ACKs of the earlier sends are let
+        pass before returning, so that the next command (SET_MESSAGE_INTERVAL comes in a row) cannot take one for its
+        own."""
         for attempt, wait in enumerate(self._retries()):
+            sent = time.monotonic()
             self.fire(command, *params, confirmation=min(attempt, MAX_CONFIRMATION))
             ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, wait)
             if ack is not None:
+                if attempt == 0:
+                    self._timed(sent)
+                else:
+                    self.wait(lambda m: False, sent + wait - time.monotonic())
                 return int(ack.result)
         return None
 
@@ -344,13 +363,17 @@ class Session:
         """Wall s to wait after each send of a request: the first always, then growing waits until the budget is
         spent or the vehicle has gone silent."""
         start = time.monotonic()
-        wait = RETRY_FIRST
-        while True:
-            yield wait
+        for attempt in itertools.count():
+            first = RETRY_FIRST if self._rtt is None else min(max(RTT_MARGIN * self._rtt, RETRY_MIN), RETRY_FIRST)
             left = RETRY_BUDGET - (time.monotonic() - start)
-            if left <= 0 or self._silent():
+            yield min(first * RETRY_GROWTH ** attempt, RETRY_LONGEST, max(left, RETRY_MIN))
+            if time.monotonic() - start >= RETRY_BUDGET or self._silent():
                 return
-            wait = min(wait * RETRY_GROWTH, RETRY_LONGEST, left)
+
+    def _timed(self, sent: float) -> None:
+        """A request sent at `sent` answered before any resend: a round-trip sample (resent ones are ambiguous)."""
+        sample = time.monotonic() - sent
+        self._rtt = sample if self._rtt is None else (1 - RTT_GAIN) * self._rtt + RTT_GAIN * sample
 
     def _silent(self) -> bool:
         return time.monotonic() - self._heard > SILENCE
