@@ -646,7 +646,9 @@ class Runner:
         neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
         alive = neutral_confirmed or self._answering()
         retry_until = time.monotonic() + LOST_LINK_RETRY
-        while not alive and time.monotonic() < retry_until:    # a glitch, or the vehicle is busy: keep trying
+        # A glitch, a busy vehicle or a link coming back: keep sending neutral until it shows (handing over, the
+        # pilot's joystick may rule the outputs: once is enough while the vehicle answers).
+        while not neutral_confirmed and (not alive or self.takeover is None) and time.monotonic() < retry_until:
             neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
             alive = neutral_confirmed or self._answering()
         report.append("neutral 1500 us on channels 1-8: sent, "
