@@ -5,8 +5,10 @@ For every loss (0/10/20/30 %, each way) x delay (0/50/100 ms of vehicle time, ea
 second, clean link for a checker (so the vehicle does not drift in the mission's disturbance while the runner
 starts); after the run the checker reads the vehicle's end state (armed?, SERVO_OUTPUT_RAW, SERVO1..8_FUNCTION).
 Prints a markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by the
-bridge, end state. Run:
+bridge, end state, and the pace the simulated vehicle kept (its achieved speedup, and slips: stalls of over a second
+of wall time on a loaded machine, which the runner rightly takes for a lost link). Run:
     .venv/bin/python tools/link_faults.py [--mission missions/square.yaml] [--speedup 10] [--jitter 0ms] [--seed 0]
+                                          [--keep DIR]   # every run's and bridge's output, to look into a row
 """
 
 from __future__ import annotations
@@ -131,10 +133,15 @@ def fly(mission: Path, loss: float, delay_ms: int, args, folder: Path) -> dict:
             output = stop(runner)
         bridge_out = stop(bridge) if bridge is not None else ""
     metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {}
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+        (args.keep / f"run-{loss:g}-{delay_ms}.txt").write_text(output)
+        (args.keep / f"bridge-{loss:g}-{delay_ms}.txt").write_text(bridge_out)
     stale = re.search(r"telemetry went stale (\d+) time", output)
     measured = re.search(r"to the vehicle (\d+) sent, (\d+) lost .*; from it (\d+) sent, (\d+) lost", bridge_out)
     up_sent, up_lost, down_sent, down_lost = map(int, measured.groups()) if measured else (0, 0, 0, 0)
     reason = re.search(r"stopping: (.*)", output)
+    pace = re.search(r"\(speedup ([\d.]+), (\d+) slips\)", bridge_out)
     return {
         "loss": loss, "delay_ms": delay_ms, "code": runner.returncode,
         "completed": bool(metrics.get("completed", False)),
@@ -144,6 +151,7 @@ def fly(mission: Path, loss: float, delay_ms: int, args, folder: Path) -> dict:
         "stale": int(stale.group(1)) if stale else 0,
         "lost_up": up_lost / max(up_sent, 1), "lost_down": down_lost / max(down_sent, 1),
         "incomplete_stop": "safe stop NOT complete" in output,
+        "pace": f"{float(pace.group(1)):.2f}x, {pace.group(2)} slips" if pace else "?",
         "end": end,
     }
 
@@ -155,11 +163,13 @@ def main() -> None:
     parser.add_argument("--start-depth", type=float, default=1.0, help="the vehicle's depth at boot, m")
     parser.add_argument("--jitter", default="", help="also jitter each delay by this much, e.g. 10ms")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--keep", type=Path, help="write every run's and bridge's output to this folder")
     args = parser.parse_args()
     print(f"mission {args.mission.name}, bridge --speedup {args.speedup:g}, loss and delay applied each way, "
           f"seed {args.seed}; load average before: {os.getloadavg()[0]:.1f}", flush=True)
     print("| loss | delay | completed | exit | RMS error | control rate | watchdog episodes | measured loss "
-          "(to / from the vehicle) | end state |\n|---|---|---|---|---|---|---|---|---|", flush=True)
+          "(to / from the vehicle) | end state | vehicle's pace |\n|---|---|---|---|---|---|---|---|---|---|",
+          flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for loss in LOSSES:
             for delay in DELAYS_MS:
@@ -167,7 +177,8 @@ def main() -> None:
                 done = "yes" if r["completed"] else f"no: {r['reason']}"
                 end = r["end"] + (" — safe stop NOT complete" if r["incomplete_stop"] else "")
                 print(f"| {loss:.0%} | {delay} ms | {done} | {r['code']} | {r['rms_cm']:.2f} cm | "
-                      f"{r['rate_hz']:.1f} Hz | {r['stale']} | {r['lost_up']:.1%} / {r['lost_down']:.1%} | {end} |",
+                      f"{r['rate_hz']:.1f} Hz | {r['stale']} | {r['lost_up']:.1%} / {r['lost_down']:.1%} | {end} | "
+                      f"{r['pace']} |",
                       flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
 
