@@ -4,10 +4,10 @@ For every loss (0/10/20/30 %, each way) x delay (0/50/100 ms of vehicle time, ea
 (--metrics) and, once the runner is up and calling, `rov-mav sim-bridge` with --link-faults on the runner's link and a
 second, clean link for a checker (so the vehicle does not drift in the mission's disturbance while the runner
 starts); after the run the checker reads the vehicle's end state (armed?, SERVO_OUTPUT_RAW, SERVO1..8_FUNCTION).
-Prints a markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by the
-bridge, end state, and the pace the simulated vehicle kept (its achieved speedup, and slips: stalls of over a second
-of wall time on a loaded machine, which the runner rightly takes for a lost link). Run:
-    .venv/bin/python tools/link_faults.py [--mission missions/square.yaml] [--speedup 10] [--jitter 0ms] [--seed 0]
+Prints a markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by
+the bridge, end state, and the pace the simulated vehicle kept (its achieved speedup, and slips: stalls of over a
+second of wall time on a loaded machine, which the runner rightly takes for a lost link). Run:
+    .venv/bin/python tools/link_faults.py [--mission missions/square.yaml] [--speedup 5] [--jitter 0ms] [--seed 0]
                                           [--keep DIR]   # every run's and bridge's output, to look into a row
 """
 
@@ -159,7 +159,7 @@ def fly(mission: Path, loss: float, delay_ms: int, args, folder: Path) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mission", type=Path, default=ROOT / "missions" / "square.yaml")
-    parser.add_argument("--speedup", type=float, default=10.0)
+    parser.add_argument("--speedup", type=float, default=5.0)
     parser.add_argument("--start-depth", type=float, default=1.0, help="the vehicle's depth at boot, m")
     parser.add_argument("--jitter", default="", help="also jitter each delay by this much, e.g. 10ms")
     parser.add_argument("--seed", type=int, default=0)
