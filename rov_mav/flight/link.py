@@ -267,6 +267,19 @@ class Session:
                 return int(ack.result)
         return None
 
+    def ask(self, send, predicate):
+        """Call `send`, wait for a message matching `predicate`, call it again while the answer is late (the session's
+        resend schedule); the message, or None once the retry budget is spent."""
+        for attempt, wait in enumerate(self._retries()):
+            sent = time.monotonic()
+            send()
+            reply = self.wait(predicate, wait)
+            if reply is not None:
+                if attempt == 0:
+                    self._timed(sent)
+                return reply
+        return None
+
     def fire(self, command: int, *params: float, confirmation: int = 0) -> None:
         """COMMAND_LONG without waiting for its COMMAND_ACK (when the link may be gone)."""
         p = list(params) + [0.0] * (7 - len(params))

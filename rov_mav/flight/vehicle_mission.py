@@ -14,7 +14,7 @@ back 0 for its param2-4. The legs' speed is the vehicle's WPNAV_SPEED (cm/s), as
 from __future__ import annotations
 
 from rov_mav import config
-from rov_mav.flight.link import ATTEMPTS, REPLY_TIMEOUT, LinkError, Session, mavlink
+from rov_mav.flight.link import RETRY_BUDGET, LinkError, Session, mavlink
 from rov_mav.mission.mission_items import MissionItem, Planned, PlanOptions, build_mission
 from rov_mav.mission.missions import Mission
 
@@ -55,23 +55,21 @@ def vehicle_mission(session: Session, options: PlanOptions = PlanOptions()) -> M
 
 
 def _ask(session: Session, send, predicate, what: str):
-    """Send, wait for the answer matching `predicate`, send again when it is late; LinkError after ATTEMPTS or on an
-    error MISSION_ACK."""
+    """Send, wait for the answer matching `predicate`, send again when it is late (the session's resend schedule);
+    LinkError when none comes within its budget or on an error MISSION_ACK."""
     def answer(m):
         return predicate(m) or (m.get_type() == "MISSION_ACK" and m.mission_type == MISSION_TYPE
                                 and m.type != mavlink.MAV_MISSION_ACCEPTED)
 
-    for _ in range(ATTEMPTS):
-        send()
-        reply = session.wait(answer, REPLY_TIMEOUT)
-        if reply is not None and reply.get_type() == "MISSION_ACK":
-            entry = mavlink.enums["MAV_MISSION_RESULT"].get(reply.type)
-            result = entry.name.removeprefix("MAV_MISSION_") if entry else str(reply.type)
-            raise LinkError(f"the vehicle refused the mission download: {result}"
-                            + (" (another station is uploading a mission)" if result == "DENIED" else ""))
-        if reply is not None:
-            return reply
-    raise LinkError(f"mission download from {session.target}: no {what} after {ATTEMPTS} requests")
+    reply = session.ask(send, answer)
+    if reply is None:
+        raise LinkError(f"mission download from {session.target}: no {what} within {RETRY_BUDGET:g} s of requests")
+    if reply.get_type() == "MISSION_ACK":
+        entry = mavlink.enums["MAV_MISSION_RESULT"].get(reply.type)
+        result = entry.name.removeprefix("MAV_MISSION_") if entry else str(reply.type)
+        raise LinkError(f"the vehicle refused the mission download: {result}"
+                        + (" (another station is uploading a mission)" if result == "DENIED" else ""))
+    return reply
 
 
 def _send(session: Session, name: str, *fields) -> None:
