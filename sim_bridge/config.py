@@ -1,4 +1,4 @@
-"""What a bridge is started with: endpoints, speedup, firmware naming, environment, start state."""
+"""What a bridge is started with: endpoints, speedup, firmware naming, environment, start state, link faults."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rov_mav.model.environment import Environment
+    from sim_bridge.faults import FaultSpec
 
 DEFAULT_OUT = "udpout:127.0.0.1:14550"
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 0.0)   # lat deg, lon deg, surface altitude m (ArduPilot SITL's home)
@@ -25,6 +26,7 @@ class BridgeConfig:
     origin: tuple[float, float, float] = DEFAULT_ORIGIN
     start_depth: float = 0.0                          # m, at boot (level, heading north, at the origin)
     step: float = DEFAULT_STEP
-    seed: int = 0
+    seed: int = 0                                     # of the sensor noise and the link faults
+    faults: FaultSpec | None = None                   # degrade the links on purpose (sim_bridge/faults.py)
     params: dict[str, float] = field(default_factory=dict)
     signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key

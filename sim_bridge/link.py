@@ -2,6 +2,9 @@
 writes). Non-blocking sockets, polled by the bridge's loop; one MAVLink encoder (sequence numbers) per link, and one
 signing state (`sim_bridge.signing`) that its encoder and parsers share; frames the signature check refused are
 counted in `rejections`.
+A link given faults (`degrade`) passes every message, both ways, through them (sim_bridge/faults.py): encoded frames
+on the way out (so a lost one leaves a gap in the sequence numbers), parsed messages on the way in; on tcpin whole
+messages are lost or delayed, as behind a lossy radio bridged to TCP.
 """
 
 from __future__ import annotations
@@ -10,10 +13,12 @@ import errno
 import re
 import socket
 import time
+from collections.abc import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.signing import Rejections, advance, check_signature_first
+from sim_bridge.faults import LinkFaults, message_id
 
 KINDS = ("udpout", "udpin", "tcpin")
 MAX_DATAGRAM = 65535
@@ -81,6 +86,8 @@ class Link:
         self.rejections = Rejections()
         self.peers: list[_Peer] = []
         self.udp_peer: tuple[str, int] | None = self.address if self.kind == "udpout" else None
+        self.faults: LinkFaults | None = None
+        self.clock: Callable[[], float] = lambda: 0.0
         try:
             if self.kind == "tcpin":
                 self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -99,10 +106,21 @@ class Link:
     def sockets(self) -> list[socket.socket]:
         return [self.sock] + [p.sock for p in self.peers if p.sock is not None]
 
+    def degrade(self, faults: LinkFaults, clock: Callable[[], float]) -> None:
+        """Pass every message through `faults` from now on; `clock()` is the vehicle time (s)."""
+        self.faults, self.clock = faults, clock
+
     def receive(self) -> list:
-        """Every complete MAVLink message waiting on this link (non-blocking)."""
-        if self.kind == "tcpin":
-            return self._receive_tcp()
+        """Every complete MAVLink message that has arrived on this link (non-blocking)."""
+        msgs = self._receive_tcp() if self.kind == "tcpin" else self._receive_udp()
+        if self.faults is None:
+            return msgs
+        t = self.clock()
+        for msg in msgs:
+            self.faults.uplink.send(msg, msg.get_msgId(), t)
+        return self.faults.uplink.due(t)
+
+    def _receive_udp(self) -> list:
         out = []
         while True:
             try:
@@ -161,6 +179,19 @@ class Link:
 
     def write(self, buf: bytes) -> None:
         """File interface used by the pymavlink encoder."""
+        if self.faults is None:
+            self._transmit(buf)
+            return
+        self.faults.downlink.send(buf, message_id(buf), self.clock())
+        self.deliver()
+
+    def deliver(self) -> None:
+        """Transmit what the faults let arrive by now (the bridge calls this every step)."""
+        if self.faults is not None:
+            for buf in self.faults.downlink.due(self.clock()):
+                self._transmit(buf)
+
+    def _transmit(self, buf: bytes) -> None:
         if self.kind == "tcpin":
             for peer in list(self.peers):
                 peer.backlog += buf

@@ -24,6 +24,7 @@ from sim_bridge import telemetry
 from sim_bridge.ardusub import ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.config import BridgeConfig
+from sim_bridge.faults import LinkFaults
 from sim_bridge.link import Link, open_links
 from sim_bridge.missions import MissionProtocol
 from sim_bridge.pacing import Pacer
@@ -49,6 +50,10 @@ class Bridge:
                 raise ValueError(f"unknown parameter {name}")
             if self.params.set(name, value) is None:
                 raise ValueError(f"parameter {name}: {value:g} is not a finite 32-bit float")
+        faults = config.faults
+        if faults is not None and faults.link is not None and faults.link >= len(config.endpoints):
+            raise ValueError(f"link faults: link={faults.link}, but the bridge has {len(config.endpoints)} link(s) "
+                             f"(0 to {len(config.endpoints) - 1})")
         if not 1 <= self.params.sysid <= 255:
             raise ValueError(f"parameter {self.params.names.sysid}: the vehicle's sysid must be 1 to 255")
         self.vehicle = load_vehicle(config.vehicle_path)
@@ -85,10 +90,13 @@ class Bridge:
         self.links = open_links(list(self.config.endpoints), self.sub.sysid)
         self.signing.attach(self.links)
         self.signing.on_change = lambda text: print(f"sim-bridge: {text}", flush=True)
+        faults = self.config.faults
         for link in self.links:
             link.rejections.on_first = lambda rejected, link=link: print(
                 f"sim-bridge: link {link.channel} ({link.spec}): ignoring MAVLink not signed with the key (the "
                 f"first: {rejected.describe()}); counted, not reported again", file=sys.stderr, flush=True)
+            if faults is not None and faults.applies_to(link.channel):
+                link.degrade(LinkFaults.create(faults, self.config.seed, link.channel), lambda: self.t)
         names = tuple(telemetry.BUILDERS)
         self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
                            for link in self.links]
@@ -193,6 +201,7 @@ class Bridge:
             for name in scheduler.due(t):
                 snap = snap or self.snapshot()
                 link.send(telemetry.BUILDERS[name](snap))
+            link.deliver()
         for channel, msg in self.missions.update(t):
             for link in self.links:
                 if link.channel == channel:

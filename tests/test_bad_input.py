@@ -276,6 +276,9 @@ BAD_NUMBERS = [   # argv -> the option the line must name
     (["sim-bridge", "--param", "FS_PILOT_INPUT=1e39"], "--param", "must be a finite 32-bit float"),
     (["sim-bridge", "--param", "FS_PILOT_INPUT=nan"], "--param", "must be a finite 32-bit float"),
     (["sim-bridge", "--param", "=1"], "--param", "expected NAME=VALUE"),
+    (["sim-bridge", "--link-faults", "loss=nan"], "--link-faults", "expected a probability from 0 to 1"),
+    (["sim-bridge", "--link-faults", "delay=infms"], "--link-faults", "expected a time of 0 or more"),
+    (["sim-bridge", "--link-faults", "cut=1e400s@1s"], "--link-faults", "times of 0 or more with their unit"),
 ]
 
 

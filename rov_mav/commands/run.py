@@ -51,7 +51,9 @@ How it drives the thrusters (--output thrusters): SERVO1..8_FUNCTION are saved a
 last. Passthrough outputs are NOT gated by arming and KEEP their last PWM when the overrides stop, so on every exit
 (mission complete, Ctrl-C, SIGTERM, an error, a lost link, a failed arm, a limit crossed) the runner sends neutral on
 all 8 channels, releases the overrides, disarms and restores SERVO1..8_FUNCTION, and prints what it did. If the link
-is gone it says so: the thrusters then hold their last command on the vehicle.
+is gone it says so: the thrusters then hold their last command on the vehicle. Requests (parameters, commands) are
+resent with growing waits, so that a lossy link (30 % each way) does not stop a start or a stop; a step of the stop
+the vehicle never confirmed is named, and the exit status is then not 0.
 
 Before sending anything it watches the link for 3 s of vehicle time and refuses (unless --force) a vehicle that is
 not ArduSub on a submarine, is armed, is driven by another station (RC overrides, a joystick off centre) or whose
@@ -61,7 +63,7 @@ role with a sysid of its own (MAV_GCS_SYSID / SYSID_MYGCS set for the run, resto
 joystick moved off centre, another station's RC overrides, RC input the run did not send or a mode changed by
 someone else hand the vehicle over: neutral, overrides released, SERVO1..8_FUNCTION back to the motors, the GCS
 sysid restored, left armed for the pilot (exit status 3). Then ATTITUDE and LOCAL_POSITION_NED must arrive at the
-control rate.
+control rate (sent by the vehicle at 80 % of it, arriving at 50 % or more: a 30 % loss is flown through).
 Safety while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout
 -> abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster.
 """
@@ -77,7 +79,8 @@ examples:
   rov-mav run missions/under_ice_survey.plan --speedup 10        # a QGroundControl plan
   rov-mav run --target udp:127.0.0.1:14550 --mission-from-vehicle  # the mission uploaded to the vehicle
 
-exit status: 0 mission complete; 1 aborted or refused (the reason is printed); 2 bad arguments or files;
+exit status: 0 mission complete and the vehicle left safe; 1 aborted or refused (the reason is printed), or a
+safe-stop step not confirmed (named); 2 bad arguments or files;
 3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
 """
 

@@ -10,6 +10,7 @@ from rov_mav.commands.arguments import endpoint, number, seed, speedup
 from rov_mav.commands.common import add_signing_options, signing_key
 from rov_mav.model.environment import load_environment
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
+from sim_bridge.faults import FaultError, FaultSpec, load_faults
 from sim_bridge.link import LinkError
 from sim_bridge.params import DEFAULT_FIRMWARE, FIRMWARES
 
@@ -39,6 +40,7 @@ examples:
   rov-mav sim-bridge --out udpout:127.0.0.1:14550 --listen tcpin:0.0.0.0:5760
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
   rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
+  rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --link-faults loss=0.2,delay=50ms,jitter=10ms --seed 3
 
 Stop with Ctrl-C or SIGTERM; the achieved speedup, the loop's timing and the count of messages received (and of
 any that raised an error while being handled: each is also reported on stderr) are printed on exit.
@@ -61,6 +63,13 @@ def _origin(text: str) -> tuple[float, float, float]:
     if not (-90 <= lat <= 90 and -180 <= lon <= 180 and abs(alt) <= 10_000):
         raise argparse.ArgumentTypeError(f"{text}: need -90 <= LAT <= 90, -180 <= LON <= 180, |ALT| <= 10000 m")
     return lat, lon, alt
+
+
+def _faults(text: str) -> FaultSpec:
+    try:
+        return load_faults(text)
+    except FaultError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -105,7 +114,14 @@ def register(subparsers) -> None:
                    help="depth in m at boot (default 0: at the surface; the model has no free surface)")
     p.add_argument("--step", type=number(MIN_STEP, MAX_STEP), default=DEFAULT_STEP, metavar="S",
                    help="fixed physics and main-loop step in simulated seconds (default %(default)s: 400 Hz)")
-    p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise and the link faults (default 0)")
+    p.add_argument("--link-faults", type=_faults, metavar="SPEC|FILE",
+                   help="degrade the links on purpose, both directions, in vehicle time: comma-separated "
+                        "loss=P (0..1 or %%), delay=T, jitter=T (uniform +-T; order kept), dup=P, reorder=P "
+                        "(a message arrives after the next one), cut=LENGTH@START (nothing passes), "
+                        "drop=MESSAGE[@START] (that type never arrives; repeatable), link=N (only the N-th "
+                        "endpoint, --out ones first; default all), times with ms or s, e.g. "
+                        "loss=0.2,delay=50ms,cut=30s@20s; or a YAML file with the same keys")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
     add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
@@ -122,7 +138,8 @@ def run(args: argparse.Namespace) -> int:
     environment = load_environment(args.environment) if args.environment else None
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
-                          step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args))
+                          step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args),
+                          faults=args.link_faults)
     from sim_bridge.server import (
         Bridge,  # the physics stack loads only when a bridge runs
     )
@@ -137,8 +154,9 @@ def run(args: argparse.Namespace) -> int:
     except LinkError as exc:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
         return 1
+    faults = f", link faults {args.link_faults.describe()}" if args.link_faults is not None else ""
     print(f"sim-bridge: ArduSub {args.firmware} ({bridge.vehicle.name}) on {', '.join(endpoints)}, "
-          f"speedup {args.speedup:g}{', MAVLink 2 signing on' if bridge.signing.enabled else ''}", flush=True)
+          f"speedup {args.speedup:g}{', MAVLink 2 signing on' if bridge.signing.enabled else ''}{faults}", flush=True)
     previous = {sig: signal.signal(sig, lambda *_: bridge.request_stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         bridge.run()
@@ -154,4 +172,7 @@ def run(args: argparse.Namespace) -> int:
     if rejected := {link.channel: link.rejections.count for link in bridge.links if link.rejections.count}:
         print("sim-bridge: frames dropped for their signature: "
               + ", ".join(f"link {channel}: {n}" for channel, n in rejected.items()), flush=True)
+    for link in bridge.links:
+        if link.faults is not None:
+            print(f"sim-bridge: link {link.channel} faults: {link.faults.describe()}", flush=True)
     return 0

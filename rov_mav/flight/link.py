@@ -3,7 +3,11 @@
 Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and the held RC override (the
 control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
 never sees a lost link. Everything that waits for an answer pumps the link meanwhile (so heartbeats and overrides
-keep flowing) and gives up after a wall-clock timeout.
+keep flowing). A request (parameter read or set, command) is sent again while unanswered, each wait longer than the
+last (RETRY_GROWTH, up to RETRY_LONGEST wall s), and given up after RETRY_BUDGET wall s, or sooner once the vehicle
+has sent nothing for SILENCE wall s: a 30 % loss each way (half the round trips fail) is ridden through, a vehicle
+that is gone is not waited for. The first wait is RTT_MARGIN smoothed round trips (timed on requests answered at the
+first send, as TCP times its segments: RFC 6298), within RETRY_MIN..RETRY_FIRST.
 """
 
 from __future__ import annotations
@@ -12,7 +16,8 @@ import os
 import secrets
 import socket
 import time
-from collections.abc import Callable
+import itertools
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -31,8 +36,16 @@ NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
 RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
-ATTEMPTS = 3
-REPLY_TIMEOUT = 1.5             # wall s per attempt
+RETRY_FIRST = 0.3               # wall s before the first resend while no round trip was timed (> 2 x 100 ms)
+RETRY_MIN = 0.05                # wall s: the shortest wait before a resend
+RTT_MARGIN = 3.0                # round trips to wait before the first resend
+RTT_GAIN = 0.125                # weight of a new round-trip sample in the smoothed one (RFC 6298)
+RETRY_GROWTH = 1.5              # each further wait is this much longer ...
+RETRY_LONGEST = 0.5             # ... up to this many wall s
+RETRY_BUDGET = 10.0             # wall s before an unanswered request is given up
+SILENCE = 3.0                   # wall s without a message from the vehicle: it is gone, stop resending
+HEARTBEAT_CONFIRM = 2.5         # heartbeat periods to wait for one showing a command's effect, before resending it
+MAX_CONFIRMATION = 255          # COMMAND_LONG.confirmation: 0 the first time, then +1 per resend
 RECEIVE_BUFFER = 1 << 20         # bytes
 GCS_SYSID_PARAMS = ("MAV_GCS_SYSID", "SYSID_MYGCS")   # ArduSub 4.7+, before 4.7
 UNSIGNED_GRACE = 2.0            # wall s of rejected vehicle HEARTBEATs (4 signed hellos sent) before refusing
@@ -83,6 +96,8 @@ class Session:
         self._next_heartbeat = 0.0
         self._last_override_t = -1e9
         self._wall_last_heartbeat = -1e9
+        self._heard = time.monotonic()         # wall s of the vehicle's last message
+        self._rtt: float | None = None         # wall s: smoothed round trip of a request
         conn.message_hooks.append(self._incoming)
         conn.mav.set_send_callback(self._outgoing)
 
@@ -191,14 +206,17 @@ class Session:
     def get_params(self, names, any_of: bool = False) -> dict[str, tuple[float, int]]:
         """{name: (value, MAV_PARAM_TYPE)} for those of `names` the vehicle answered (all, or the first if any_of)."""
         found: dict[str, tuple[float, int]] = {}
-        for _ in range(ATTEMPTS):
+        sent = time.monotonic()
+        for attempt, wait in enumerate(self._retries()):
             for name in names:
                 if name not in found:
                     self._send("param_request_read", self.vehicle.sysid, self.vehicle.compid, name.encode(), -1)
-            deadline = time.monotonic() + REPLY_TIMEOUT
+            deadline = time.monotonic() + wait
             while time.monotonic() < deadline and len(found) < len(names) and not (any_of and found):
-                for msg, _ in self._receive(0.05):
+                for msg, _ in self._receive(min(0.05, wait)):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in names:
+                        if attempt == 0 and not found:
+                            self._timed(sent)
                         found[msg.param_id] = (float(msg.param_value), int(msg.param_type))
                 self._check_interrupt()
             if len(found) == len(names) or (any_of and found):
@@ -213,14 +231,17 @@ class Session:
         """PARAM_SET of every {name: (value, MAV_PARAM_TYPE)} at once, each confirmed by a PARAM_VALUE carrying the
         new value (unconfirmed ones are sent again); returns the names never confirmed."""
         left = dict(values)
-        for _ in range(ATTEMPTS):
+        sent = time.monotonic()
+        for attempt, wait in enumerate(self._retries()):
             for name, (value, ptype) in left.items():
                 self._send("param_set", self.vehicle.sysid, self.vehicle.compid, name.encode(), float(value), ptype)
-            deadline = time.monotonic() + REPLY_TIMEOUT
+            deadline = time.monotonic() + wait
             while left and (wait := deadline - time.monotonic()) > 0:
                 for msg, _ in self.poll(min(wait, 0.02)):
                     if msg.get_type() == "PARAM_VALUE" and msg.param_id in left \
                             and abs(msg.param_value - left[msg.param_id][0]) < 1e-3:
+                        if attempt == 0 and len(left) == len(values):
+                            self._timed(sent)
                         del left[msg.param_id]
                 self._check_interrupt()
             if not left:
@@ -230,11 +251,19 @@ class Session:
     # -- commands --------------------------------------------------------------------------------------------
 
     def command(self, command: int, *params: float) -> int | None:
-        """COMMAND_LONG; the MAV_RESULT of its COMMAND_ACK, or None if none came."""
-        for attempt in range(ATTEMPTS):
-            self.fire(command, *params, confirmation=attempt)
-            ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, REPLY_TIMEOUT)
+        """COMMAND_LONG, resent with its confirmation field counting up (MAVLink's command protocol) until a
+        COMMAND_ACK comes; its MAV_RESULT, or None if none came. After a resend, the ACKs of the earlier sends are let
+        pass before returning, so that the next command (SET_MESSAGE_INTERVAL comes in a row) cannot take one for its
+        own."""
+        for attempt, wait in enumerate(self._retries()):
+            sent = time.monotonic()
+            self.fire(command, *params, confirmation=min(attempt, MAX_CONFIRMATION))
+            ack = self.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command, wait)
             if ack is not None:
+                if attempt == 0:
+                    self._timed(sent)
+                else:
+                    self.wait(lambda m: False, sent + wait - time.monotonic())
                 return int(ack.result)
         return None
 
@@ -249,21 +278,28 @@ class Session:
         self._send("statustext", mavlink.MAV_SEVERITY_INFO, text.encode()[:50])
 
     def set_mode(self, custom_mode: int) -> bool:
-        """DO_SET_MODE, accepted and confirmed by the next HEARTBEAT."""
-        result = self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode)
-        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
-            lambda hb: hb.custom_mode == custom_mode)
+        """DO_SET_MODE, accepted and confirmed by a HEARTBEAT."""
+        return self._confirmed((mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode),
+                               lambda hb: hb.custom_mode == custom_mode)
 
     def arm(self, arm: bool) -> bool:
-        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM), accepted and confirmed by the next HEARTBEAT."""
-        result = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0)
-        return result == mavlink.MAV_RESULT_ACCEPTED and self._heartbeat_shows(
-            lambda hb: bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == arm)
+        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM), accepted and confirmed by a HEARTBEAT."""
+        return self._confirmed((mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0),
+                               lambda hb: bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == arm)
 
-    def _heartbeat_shows(self, check) -> bool:
-        timeout = self.clock.wall_seconds(2.5 * HEARTBEAT_PERIOD) + 0.5
-        return self.wait(lambda m: m.get_type() == "HEARTBEAT" and self._from_vehicle(m) and check(m),
-                         timeout) is not None
+    def _confirmed(self, command: tuple, check) -> bool:
+        """The command accepted, then a HEARTBEAT showing `check`; sent again (it is idempotent) while no heartbeat
+        shows it, within the retry budget: under loss the ACK or the heartbeats may be the ones lost."""
+        deadline = time.monotonic() + RETRY_BUDGET
+        while True:
+            if self.command(*command) != mavlink.MAV_RESULT_ACCEPTED:
+                return False
+            timeout = self.clock.wall_seconds(HEARTBEAT_CONFIRM * HEARTBEAT_PERIOD) + 0.5
+            if self.wait(lambda m: m.get_type() == "HEARTBEAT" and self._from_vehicle(m) and check(m),
+                         timeout) is not None:
+                return True
+            if time.monotonic() >= deadline or self._silent():
+                return False
 
     def set_message_interval(self, msg_id: int, hz: float) -> bool:
         """MAV_CMD_SET_MESSAGE_INTERVAL (vehicle-time Hz); True if accepted. Not a parameter: nothing persists."""
@@ -328,6 +364,25 @@ class Session:
         self._send("heartbeat", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
         self._wall_last_heartbeat = time.perf_counter()
 
+    def _retries(self) -> Iterator[float]:
+        """Wall s to wait after each send of a request: the first always, then growing waits until the budget is
+        spent or the vehicle has gone silent."""
+        start = time.monotonic()
+        for attempt in itertools.count():
+            first = RETRY_FIRST if self._rtt is None else min(max(RTT_MARGIN * self._rtt, RETRY_MIN), RETRY_FIRST)
+            left = RETRY_BUDGET - (time.monotonic() - start)
+            yield min(first * RETRY_GROWTH ** attempt, RETRY_LONGEST, max(left, RETRY_MIN))
+            if time.monotonic() - start >= RETRY_BUDGET or self._silent():
+                return
+
+    def _timed(self, sent: float) -> None:
+        """A request sent at `sent` answered before any resend: a round-trip sample (resent ones are ambiguous)."""
+        sample = time.monotonic() - sent
+        self._rtt = sample if self._rtt is None else (1 - RTT_GAIN) * self._rtt + RTT_GAIN * sample
+
+    def _silent(self) -> bool:
+        return time.monotonic() - self._heard > SILENCE
+
     def _check_interrupt(self) -> None:
         if self.interrupt is not None:
             self.interrupt()
@@ -367,6 +422,7 @@ class Session:
         if self.vehicle is None:
             return
         if self._from_vehicle(msg):
+            self._heard = time.monotonic()
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:
                 self.clock.observe(boot_ms / 1000.0)

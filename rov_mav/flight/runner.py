@@ -14,8 +14,9 @@ on the link, in vehicle time (`runlog.mission_start_text`), so that any telemetr
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
-answers, say that its thrusters hold their last command. A pilot takeover does the same but leaves the vehicle
-armed, on its motors, for the pilot.
+answers, say that its thrusters hold their last command. A step the vehicle did not confirm (after the session's
+retries) is named at the end, and a run that would have exited 0 exits 1. A pilot takeover does the same but leaves
+the vehicle armed, on its motors, for the pilot.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
+from rov_mav.flight.stream_rate import measure, too_slow
 from rov_mav.flight.tick import TickRecord
 from rov_mav.flight.vehicle_state import State, StateDecoder
 from rov_mav.mission.approach import approach
@@ -44,15 +46,14 @@ from rov_mav.mission.missions import Mission
 PASSTHROUGH_BASE = 50            # SERVOn_FUNCTION 50 + n = RCINn
 MOTOR_BASE = 32                  # SERVOn_FUNCTION 32 + n = motor n
 SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0}   # vehicle Hz
-RATE_WINDOW = 1.0                # vehicle s of telemetry measured before arming
-RATE_TOLERANCE = 0.8             # fraction of the asked rate that must arrive
+RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
 OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
 OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
 ROLE_SYSIDS = range(254, 200, -1)   # sysids to take the GCS role with, when a pilot's joystick holds the GCS sysid
 HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 NEUTRAL_HOLD = 0.3               # vehicle s of neutral before switching outputs
 OVERRIDE_PROBE = 1510            # us: inside the T200 dead band at every voltage (1476-1528 us at 20 V)
-PROBE_WAIT = 2.0                 # vehicle s for RC_CHANNELS (asked at 2 Hz) to echo the probe
+PROBE_WAIT = 5.0                 # vehicle s for RC_CHANNELS (asked at 2 Hz) to echo the probe, through loss
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
 HANDOVER_CONFIRM = 0.2           # ... when handing over: a pilot's joystick on the GCS sysid may be writing over it
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
@@ -164,6 +165,7 @@ class Runner:
         self._prev_t = 0.0
         self.stale = False
         self.stale_episodes = 0
+        self.unconfirmed: list[str] = []      # safe-stop steps the vehicle did not confirm
         self.warned: set[str] = set()
         self._ticks: deque[float] = deque()
         self._log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
@@ -197,6 +199,8 @@ class Runner:
             self.stopping = True
             self.session.interrupt = None
             report = self._safe_stop(reason)
+            if self.unconfirmed and code == 0:     # complete, but the vehicle may not be left as it should
+                code = 1
             for s, handler in previous.items():
                 signal.signal(s, handler)
         return self._result(code, reason, completed, report)
@@ -386,7 +390,7 @@ class Runner:
         return " and ".join(names)
 
     def _check_rates(self) -> None:
-        """Measure the state messages' rates over RATE_WINDOW vehicle s."""
+        """Measure the state messages' rates over RATE_WINDOW vehicle s: what the vehicle sends, what arrives."""
         stamps: dict[str, list[float]] = {"ATTITUDE": [], "LOCAL_POSITION_NED": []}
         t_first = None
         deadline = time.monotonic() + self.session.clock.wall_seconds(RATE_WINDOW) * 3 + 2.0
@@ -400,15 +404,12 @@ class Runner:
                     t_first = stamps[kind][0] if t_first is None else t_first
             if t_first is not None and self.session.clock.now() - t_first >= RATE_WINDOW:
                 break
-        rates = {k: (len(v) - 1) / (v[-1] - v[0]) if len(v) > 1 and v[-1] > v[0] else 0.0
-                 for k, v in stamps.items()}
-        slow = {k: r for k, r in rates.items() if r < RATE_TOLERANCE * self.options.rate}
-        self.say("telemetry: " + ", ".join(f"{k} {r:.1f} Hz" for k, r in rates.items())
+        rates = {k: measure(v) for k, v in stamps.items()}
+        self.say("telemetry: " + "; ".join(f"{k} {r.describe()}" for k, r in rates.items())
                  + f" (asked {self.options.rate:g} Hz of vehicle time)")
+        slow = [why for k, r in rates.items() if (why := too_slow(k, r, self.options.rate)) is not None]
         if slow:
-            raise Abort("telemetry too slow for the control rate: " + ", ".join(f"{k} {r:.1f} Hz" for k, r in
-                        slow.items()) + f" < {RATE_TOLERANCE:.0%} of {self.options.rate:g} Hz (lower --rate, or "
-                        "check the link's bandwidth)")
+            raise Abort("telemetry too slow for the control rate: " + "; ".join(slow))
 
     def _take_over(self) -> None:
         s = self.session
@@ -418,13 +419,13 @@ class Runner:
         self._prove_overrides()
         self._send_neutral()
         self._pump_for(NEUTRAL_HOLD)
-        for n in range(1, CHANNELS + 1):
-            name = f"SERVO{n}_FUNCTION"
-            _, ptype = self.saved_functions[name]
-            if name not in self.changed_functions:
-                self.changed_functions.append(name)
-            if not s.set_param(name, PASSTHROUGH_BASE + n, ptype):
-                raise Abort(f"the vehicle did not confirm {name} = {PASSTHROUGH_BASE + n} (RCIN{n} passthrough)")
+        names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
+        passthrough = {name: (float(PASSTHROUGH_BASE + n), self.saved_functions[name][1])
+                       for n, name in enumerate(names, 1)}
+        self.changed_functions += [name for name in passthrough if name not in self.changed_functions]
+        if failed := s.set_params(passthrough):
+            raise Abort("the vehicle did not confirm " + ", ".join(f"{n} = {int(passthrough[n][0])}" for n in failed)
+                        + " (RCIN passthrough)")
         self.say("SERVO1..8_FUNCTION set to RCIN1..8 passthrough (confirmed)")
         if s.heartbeat.custom_mode != MANUAL and not s.set_mode(MANUAL):
             raise Abort("the vehicle did not enter MANUAL mode")
@@ -651,16 +652,23 @@ class Runner:
         neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
         alive = neutral_confirmed or self._answering()
         retry_until = time.monotonic() + LOST_LINK_RETRY
-        while not alive and time.monotonic() < retry_until:    # a glitch, or the vehicle is busy: keep trying
+        # A glitch, a busy vehicle or a link coming back: keep sending neutral until it shows (handing over, the
+        # pilot's joystick may rule the outputs: once is enough while the vehicle answers).
+        while not neutral_confirmed and (not alive or self.takeover is None) and time.monotonic() < retry_until:
             neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
             alive = neutral_confirmed or self._answering()
         report.append("neutral 1500 us on channels 1-8: sent, "
                       + ("confirmed by SERVO_OUTPUT_RAW" if neutral_confirmed else "NOT confirmed"))
+        if not neutral_confirmed and (self.takeover is None or not alive):   # handing over, the pilot's RC rules
+            self.unconfirmed.append("neutral")
         if not alive:
             # No release: arriving together with the neutral, it would cancel it (both land before the vehicle
             # next reads its RC input), leaving the flight command in place. Neutral stays the last word.
             attempt("disarm", lambda: s.fire(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0))
             report.append("disarm: sent, no answer")
+            pending = self.changed_functions + ([self.saved_gcs[0]] if self.saved_gcs is not None else [])
+            self.unconfirmed += (["disarm"] if self.armed_by_us else []) + (
+                ["restore " + ", ".join(pending)] if pending else [])
             last = self.last_override or [NEUTRAL] * CHANNELS
             report.append(
                 "THE LINK IS GONE: the vehicle did not answer. Its thrusters HOLD THEIR LAST COMMAND: RCIN "
@@ -676,9 +684,14 @@ class Runner:
             self._pump_for(NEUTRAL_HOLD)           # give the vehicle time to apply it before letting go
         if attempt("release", lambda: s.release_overrides() or True):
             report.append("RC overrides on channels 1-8 released")
+        else:
+            self.unconfirmed.append("release")
         if self.armed_by_us and self.takeover is None:
-            report.append("disarmed (confirmed by HEARTBEAT)" if attempt("disarm", lambda: s.arm(False))
-                          else "disarm NOT confirmed")
+            if attempt("disarm", lambda: s.arm(False)):
+                report.append("disarmed (confirmed by HEARTBEAT)")
+            else:
+                report.append("disarm NOT confirmed")
+                self.unconfirmed.append("disarm")
         # The motors first, then the GCS sysid: a pilot's joystick must never reach an output on passthrough.
         restore = {name: self.saved_functions[name] for name in self.changed_functions}
         if self.saved_gcs is not None:
@@ -688,8 +701,10 @@ class Runner:
             report += self._restore(attempt, restore)
         if self.takeover is not None:
             report.append(self._handover_note())
-        report += attempt("message rates", lambda: self._restore_streams(alive=True)) or []
-        return self._finish(report)
+        streams = attempt("message rates", lambda: self._restore_streams(alive=True))
+        if streams is None:
+            self.unconfirmed.append("reset message rates")
+        return self._finish(report + (streams or []))
 
     def _restore(self, attempt, values: dict[str, tuple[float, int]]) -> list[str]:
         """Set the saved parameters back, all at once; one line for the confirmed, one for the rest."""
@@ -702,6 +717,7 @@ class Runner:
             lines.append("restored " + ", ".join(restored) + " (confirmed by PARAM_VALUE)")
         if failed:
             lines.append("NOT restored (no confirmation): " + ", ".join(f"{n}={int(values[n][0])}" for n in failed))
+            self.unconfirmed.append("restore " + ", ".join(failed))
         return lines
 
     def _handover_note(self) -> str:
@@ -744,9 +760,13 @@ class Runner:
             return []
         ok = all(self.session.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 0) ==
                  mavlink.MAV_RESULT_ACCEPTED for msg_id in self.streams_set)
+        if not ok:
+            self.unconfirmed.append("reset message rates")
         return ["message rates back to the vehicle's defaults" if ok else "message rates NOT all reset"]
 
     def _finish(self, report: list[str]) -> list[str]:
+        if self.unconfirmed:
+            report.append(f"safe stop NOT complete: {'; '.join(self.unconfirmed)} not confirmed by the vehicle")
         for line in report:
             self.say(line, "warning" if "NOT" in line or "GONE" in line else "info")
         return report
