@@ -43,20 +43,27 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.signal import savgol_filter
 
-from rov_mav.model.dynamics import coriolis, rotation
+from rov_mav.model.dynamics import coriolis, jacobian, rotation
+from rov_mav.model.kernel import compiled
 from rov_mav.model.thrusters import NEUTRAL_PWM, T200, allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
+from rov_mav.offline.tuning import feedforward
 
 DOFS = ("surge", "sway", "heave", "roll", "pitch", "yaw")
 WINDOW = 0.4                  # s, length of the integration windows
+SMOOTHING = 0.5               # s, span of the Savitzky-Golay filter applied to every term
+SMOOTHING_ORDER = 2
 MIN_DURATION = 30.0           # s of flight in all runs together
 GAP_FACTOR = 3.0              # a tick further than this many median periods from the last starts a new piece
-DELAY_STEPS = 9               # delays tried: 0, 1/4, ..., 2 control periods
+DELAY_STEPS = 5               # delays tried: 0, 1/2, ..., 2 control periods
+VOLTAGE_RESOLUTION = 0.01     # V: the bench thrust is looked up at the logged voltage rounded to this
 RELATIVE_PRECISION = 0.1      # a fitted value is kept when its 95 % CI half-width is within 10 % of its size
+ARM_PRECISION = 0.01          # ... 1 % for a moment arm, which a ruler measures about that well
 FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's mass (inertia) in the DOF's units
 STRUCTURAL = 1e-6             # singular value ratio of the column-scaled Jacobian below which a direction is blind
-VIF_MAX = 100.0               # variance inflation beyond which a parameter is too collinear with others to fit
+VIF_MAX = 1000.0              # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
 MAX_ITERATIONS = 50
 ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw")
@@ -80,6 +87,7 @@ class Run:
     pwm: np.ndarray       # (N, 8) us as sent (mirrored for thrusters whose MOT_n_DIRECTION is -1)
     thrusts: np.ndarray   # (N, 8) N, what the controller allocated (its sign tells a mirrored PWM)
     voltage: np.ndarray   # (N,) V the controller mapped thrust to PWM at
+    reference: np.ndarray  # (N, 18) eta_d, eta_dot_d, eta_ddot_d the controller was tracking
 
 
 @dataclass(frozen=True)
@@ -118,7 +126,8 @@ class Identification:
 class _Parameter:
     name: str
     unit: str
-    floor: float
+    floor: float                        # a 95 % half-width below this is precise enough, whatever the value
+    precision: float = RELATIVE_PRECISION   # ... or below this fraction of the value (or of the prior)
 
 
 def _parameters(prior: Vehicle) -> list[_Parameter]:
@@ -130,7 +139,7 @@ def _parameters(prior: Vehicle) -> list[_Parameter]:
     out += [_Parameter("buoyancy", "N", 1e-3 * prior.weight)]
     out += [_Parameter(f"lever.{a}", "m", 5e-4) for a in "xyz"]
     out += [_Parameter("thrust_scale.forward", "", 0.01), _Parameter("thrust_scale.reverse", "", 0.01)]
-    out += [_Parameter(name, "", 0.01) for name in ARM_ORDER]
+    out += [_Parameter(name, "", 0.0, ARM_PRECISION) for name in ARM_ORDER]
     return out
 
 
@@ -156,9 +165,10 @@ def _nominal_thrusts(run: Run, t200: T200) -> np.ndarray:
     pushing = np.sign(run.pwm - NEUTRAL_PWM) * np.sign(run.thrusts)
     mirrored = pushing.sum(axis=0) < 0
     pwm = np.where(mirrored, 2 * NEUTRAL_PWM - run.pwm, run.pwm)
+    voltage = np.round(run.voltage / VOLTAGE_RESOLUTION) * VOLTAGE_RESOLUTION
     out = np.empty_like(pwm)
-    for v in np.unique(run.voltage):
-        rows = run.voltage == v
+    for v in np.unique(voltage):
+        rows = voltage == v
         out[rows] = t200.thrust(pwm[rows], v)
     return out
 
@@ -169,31 +179,37 @@ def _cumulative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(steps, axis=0)])
 
 
-def _lagged_integral(t: np.ndarray, u: np.ndarray, a: np.ndarray, b: np.ndarray, delay: float,
-                     lag: float) -> np.ndarray:
-    """int_{t[a]}^{t[b]} f dt (W, n) for commands u (N, n) held from t_k + delay to t_(k+1) + delay (none before),
-    through a first-order lag T_f f_dot = u - f of time constant `lag` s: int f = int u - T_f (f(t_b) - f(t_a))."""
+def _lagged_integral(t: np.ndarray, u: np.ndarray, delay: float, lag: float) -> np.ndarray:
+    """int_{t[0]}^{t_k} f dt at every tick (N, n), for commands u (N, n) held from t_k + delay to t_(k+1) + delay
+    (none before), through a first-order lag T_f f_dot = u - f of time constant `lag` s: int f = int u - T_f f."""
     period = np.median(np.diff(t))
     s = np.concatenate([t, [t[-1] + period]]) + delay           # (N+1,) hold breakpoints
     held = np.diff(s)[:, None]
     cum = np.concatenate([np.zeros((1, u.shape[1])), np.cumsum(u * held, axis=0)])   # int u at s_k
     decay = np.exp(-held / lag) if lag > 0 else np.zeros_like(held)
-    f = np.zeros((len(s), u.shape[1]))                          # f at s_k
-    for k in range(len(t)):
-        f[k + 1] = u[k] + (f[k] - u[k]) * decay[k]
+    f = _lag_response(u, decay)                                 # f at s_k
+    k = np.clip(np.searchsorted(s, t, side="right") - 1, -1, len(t) - 1)
+    before = (k < 0)[:, None]
+    k = np.maximum(k, 0)
+    since = (t - s[k])[:, None]
+    integral = cum[k] + u[k] * since
+    value = u[k] + (f[k] - u[k]) * (np.exp(-since / lag) if lag > 0 else 0.0)
+    return np.where(before, 0.0, integral - lag * value)
 
-    def at(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k = np.clip(np.searchsorted(s, times, side="right") - 1, -1, len(t) - 1)
-        since = times - s[np.maximum(k, 0)]
-        before = k < 0
-        uk = np.where(before[:, None], 0.0, u[np.maximum(k, 0)])
-        integral = np.where(before[:, None], 0.0, cum[np.maximum(k, 0)] + uk * since[:, None])
-        fk = np.where(before[:, None], 0.0, f[np.maximum(k, 0)])
-        value = uk + (fk - uk) * (np.exp(-since / lag)[:, None] if lag > 0 else 0.0)
-        return integral, np.where(before[:, None], 0.0, value)
 
-    (ua, fa), (ub, fb) = at(t[a]), at(t[b])
-    return ub - ua - lag * (fb - fa)
+@compiled
+def _lag_response(u, decay):
+    """f (N+1, n) at the hold breakpoints of a first-order lag from rest: f_(k+1) = u_k + (f_k - u_k) decay_k."""
+    f = np.zeros((u.shape[0] + 1, u.shape[1]))
+    for k in range(u.shape[0]):
+        for j in range(u.shape[1]):
+            f[k + 1, j] = u[k, j] + (f[k, j] - u[k, j]) * decay[k, 0]
+    return f
+
+
+def _smooth(y: np.ndarray, samples: int) -> np.ndarray:
+    """Savitzky-Golay (quadratic, `samples` odd) along the first axis: zero phase, polynomials kept."""
+    return savgol_filter(y, samples, SMOOTHING_ORDER, axis=0, mode="interp") if samples > SMOOTHING_ORDER + 1 else y
 
 
 @dataclass(frozen=True)
@@ -212,47 +228,88 @@ class _Windows:
     piece: np.ndarray           # (W,) index of the unbroken stretch the window belongs to
 
 
-class _Data:
-    """The runs cut into windows; the thrust integrals are recomputed for each delay tried."""
+def _state_integrals(t: np.ndarray, eta: np.ndarray, nu: np.ndarray, a: np.ndarray, b: np.ndarray,
+                     rigid: np.ndarray, samples: int) -> dict[str, np.ndarray]:
+    """The state-dependent fields of `_Windows` for windows [t[a], t[b]] of one stretch, from the states smoothed
+    over `samples` ticks."""
+    eta, nu = _smooth(eta, samples), _smooth(nu, samples)
+    units = [np.diag(np.eye(6)[i]) for i in range(6)]
+    terms = np.concatenate([
+        nu, np.abs(nu) * nu,
+        np.stack([np.einsum("nij,nj->ni", coriolis(u, nu), nu) for u in units], axis=1).reshape(-1, 36),
+        np.einsum("nij,nj->ni", coriolis(rigid, nu), nu),
+        rotation(eta)[:, 2, :]], axis=1)
+    cum = _cumulative(t, terms)
+    integral = cum[b] - cum[a]
+    return dict(duration=t[b] - t[a], dnu=nu[b] - nu[a], nu=integral[:, :6], nu_abs=integral[:, 6:12],
+                coriolis_unit=integral[:, 12:48].reshape(-1, 6, 6), coriolis_rigid=integral[:, 48:54],
+                rho=integral[:, 54:57])
 
-    def __init__(self, runs: list[Run], prior: Vehicle, window: float):
+
+class _Data:
+    """The runs cut into windows, as measured and as the reference asked; thrust integrals for any delay."""
+
+    def __init__(self, runs: list[Run], prior: Vehicle, window: float, smoothing: float):
         t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2)))
         self.lag = prior.thruster_time_constant
         rigid = prior.rigid_body_mass_matrix
-        units = [np.diag(np.eye(6)[i]) for i in range(6)]
-        self.pieces = []                     # (t, u_nominal, a, b) per unbroken stretch
-        parts = []
+        self.pieces = []                     # (t, bench thrust, reference, a, b, samples) per unbroken stretch
+        measured, asked = [], []
         for run in runs:
             nominal = _nominal_thrusts(run, t200)
             for piece in _pieces(run):
-                t, nu, eta = run.t[piece], run.nu[piece], run.eta[piece]
-                step = max(1, int(round(window / np.median(np.diff(t)))))
+                t = run.t[piece]
+                period = np.median(np.diff(t))
+                step = max(1, int(round(window / period)))
+                samples = 2 * int(round(0.5 * smoothing / period)) + 1
                 a = np.arange(0, len(t) - step, step)
-                if a.size == 0:
+                if a.size == 0 or len(t) < samples:
                     continue
                 b = a + step
-                terms = np.concatenate([
-                    nu, np.abs(nu) * nu,
-                    np.stack([np.einsum("nij,nj->ni", coriolis(u, nu), nu) for u in units], axis=1).reshape(-1, 36),
-                    np.einsum("nij,nj->ni", coriolis(rigid, nu), nu),
-                    rotation(eta)[:, 2, :]], axis=1)
-                cum = _cumulative(t, terms)
-                integral = cum[b] - cum[a]
-                parts.append((t[b] - t[a], nu[b] - nu[a], integral, np.full(a.size, len(self.pieces))))
-                self.pieces.append((t, nominal[piece], a, b))
-        if not parts:
+                ref = run.reference[piece]
+                eta_d = ref[:, :6]
+                nu_d = np.linalg.solve(jacobian(eta_d), ref[:, 6:12, None])[..., 0]
+                label = np.full(a.size, len(self.pieces))
+                measured.append(_state_integrals(t, run.eta[piece], run.nu[piece], a, b, rigid, samples)
+                                | {"piece": label})
+                asked.append(_state_integrals(t, eta_d, nu_d, a, b, rigid, 1) | {"piece": label})
+                self.pieces.append((t, nominal[piece], ref, a, b, samples))
+        if not measured:
             raise IdentificationError("the logs hold no stretch of flight longer than one window")
-        duration, dnu, integral, piece = (np.concatenate(p) for p in zip(*parts))
-        self.base = dict(duration=duration, dnu=dnu, nu=integral[:, :6], nu_abs=integral[:, 6:12],
-                         coriolis_unit=integral[:, 12:48].reshape(-1, 6, 6), coriolis_rigid=integral[:, 48:54],
-                         rho=integral[:, 54:57], piece=piece)
+        self.measured = {k: np.concatenate([m[k] for m in measured]) for k in measured[0]}
+        self.asked = {k: np.concatenate([m[k] for m in asked]) for k in asked[0]}
 
-    def windows(self, delay: float) -> _Windows:
+    def _thrust(self, commands: list[np.ndarray], delay: float, smooth: bool) -> dict[str, np.ndarray]:
         pos, neg = [], []
-        for t, u, a, b in self.pieces:
-            pos.append(_lagged_integral(t, np.maximum(u, 0.0), a, b, delay, self.lag))
-            neg.append(_lagged_integral(t, np.minimum(u, 0.0), a, b, delay, self.lag))
-        return _Windows(thrust_pos=np.concatenate(pos), thrust_neg=np.concatenate(neg), **self.base)
+        for (t, _, _, a, b, samples), u in zip(self.pieces, commands):
+            for side, part in ((pos, np.maximum(u, 0.0)), (neg, np.minimum(u, 0.0))):
+                cum = _smooth(_lagged_integral(t, part, delay, self.lag), samples if smooth else 1)
+                side.append(cum[b] - cum[a])
+        return {"thrust_pos": np.concatenate(pos), "thrust_neg": np.concatenate(neg)}
+
+    def measured_windows(self, delay: float) -> _Windows:
+        """The measured windows, the bench thrust delayed by `delay` s and smoothed as the states are (the same
+        linear filter on every term keeps the balance exact)."""
+        return _Windows(**self.measured, **self._thrust([p[1] for p in self.pieces], delay, True))
+
+    def design_windows(self, delay: float) -> _Windows:
+        """The reference's windows with the bench thrust actually sent: the regression's design without the sensors'
+        noise, to judge what the excitation can tell apart."""
+        return _Windows(**self.asked, **self._thrust([p[1] for p in self.pieces], delay, False))
+
+    def demand(self, vehicle: Vehicle) -> list[np.ndarray]:
+        """Per stretch, the bench thrust (N, 8) `vehicle` would need to fly the reference exactly (Eq. 2.17 with
+        e = 0: `tuning.feedforward`, allocated by the pseudo-inverse)."""
+        allocate = np.linalg.pinv(allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions))
+        commands = []
+        for _, _, ref, _, _, _ in self.pieces:
+            thrust = np.einsum("ij,nj->ni", allocate, feedforward(vehicle, ref))
+            commands.append(thrust / np.where(thrust > 0, vehicle.thrust_scale[0], vehicle.thrust_scale[1]))
+        return commands
+
+    def reference_windows(self, delay: float, demand: list[np.ndarray]) -> _Windows:
+        """The reference's windows with a `demand`ed thrust: the instruments, free of sensor noise."""
+        return _Windows(**self.asked, **self._thrust(demand, delay, False))
 
 
 # -- model -----------------------------------------------------------------------------------------------------
@@ -328,80 +385,131 @@ class _Model:
 @dataclass
 class _Fit:
     theta: np.ndarray
-    cost: float
+    cost: float                 # sum of the weighted residuals squared
     residual: np.ndarray        # (W, 6) unweighted
-    jacobian: np.ndarray        # (W * 6, free) of the weighted residuals
+    jacobian: np.ndarray        # (W * 6, free) of the weighted residuals, measured windows
+    instruments: np.ndarray     # (W * 6, free) the same on the reference's windows
 
 
-def _fit(model: _Model, w: _Windows, theta0: np.ndarray, free: np.ndarray, scale: np.ndarray) -> _Fit:
-    """Weighted least squares over the free parameters (the others held at theta0), scale (6,) per DOF:
-    Levenberg-Marquardt on the normal equations, the lower bounds kept by an active set (a parameter at its bound
-    that the gradient pushes further out is held there for the step)."""
-    theta = np.maximum(theta0, LOWER)
+def _fit(model: _Model, w: _Windows, theta0: np.ndarray, free: np.ndarray, scale: np.ndarray,
+         instruments=None) -> _Fit:
+    """The free parameters (the others held at theta0); r: the residuals on the measured windows, weighted by
+    1 / scale (6,) per DOF; J its Jacobian.
+
+    First least squares, min |r|^2. Then, given `instruments` (theta -> the reference's windows flown by the model
+    theta), the instrumental-variables solution Z^T r = 0 from there, Z being the model's Jacobian on those windows.
+    The reference is free of the sensors' noise but the vehicle follows it, so Z correlates with the true regressors
+    and not with the noise in the measured ones. On noisy closed-loop data least squares is biased both ways: noise
+    in the regressors pulls added mass and damping toward zero (errors in variables), and the controller's reaction
+    to that noise, which is in the thrust, pulls them toward its own gains; instrumental variables are not."""
     index = np.flatnonzero(free)
 
-    def evaluate(th):
+    def weighted(th, windows):
+        return (model.jacobian(th, windows)[:, :, index] / scale[None, :, None]).reshape(-1, index.size)
+
+    def residual(th):
         lhs, rhs = model.sides(th, w)
-        r = ((lhs - rhs) / scale).ravel()
-        return r, float(np.einsum("i,i->", r, r))
+        return ((lhs - rhs) / scale).ravel()
 
-    def weighted_jacobian(th):
-        return (model.jacobian(th, w)[:, :, index] / scale[None, :, None]).reshape(-1, index.size)
+    theta = _levenberg_marquardt(residual, lambda th: weighted(th, w), np.maximum(theta0, LOWER), index)
+    z = weighted(theta, w)
+    if instruments is not None:
+        z = weighted(theta, instruments(theta))
+        theta = _gauss_newton(lambda th: np.einsum("ij,i->j", z, residual(th)),
+                              lambda th: np.einsum("ij,ik->jk", z, weighted(th, w)), theta, index)
+    r = residual(theta).reshape(-1, 6)
+    return _Fit(theta, float(np.sum(r**2)), r * scale, weighted(theta, w), z)
 
-    r, cost = evaluate(theta)
+
+def _gauss_newton(function, jacobian, theta: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """theta with function(theta) = 0 over theta[index] (as many equations as unknowns), by Newton steps halved
+    while they do not reduce |function|; unbounded (the caller holds what crosses a bound)."""
+    theta = theta.copy()
+    f = function(theta)
+    for _ in range(MAX_ITERATIONS):
+        step = np.linalg.solve(jacobian(theta), -f)
+        for _ in range(20):
+            trial = theta.copy()
+            trial[index] += step
+            f_trial = function(trial)
+            if f_trial @ f_trial < f @ f:
+                break
+            step *= 0.5
+        else:
+            break
+        converged = np.all(np.abs(trial[index] - theta[index]) <= 1e-10 * np.maximum(np.abs(theta[index]), 1e-3))
+        theta, f = trial, f_trial
+        if converged:
+            break
+    return theta
+
+
+def _levenberg_marquardt(function, jacobian, theta: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """theta with theta[index] minimising |function(theta)|^2, theta[index] >= LOWER[index] (a parameter at its
+    bound that the gradient pushes further out is held there for the step). Normal equations by einsum: small,
+    and immune to a loaded machine's BLAS thread contention."""
+    theta = theta.copy()
+    f = function(theta)
+    cost = float(f @ f)
     damping = 1e-3
     for _ in range(MAX_ITERATIONS):
-        jac = weighted_jacobian(theta)
-        gradient = np.einsum("ij,i->j", jac, r)
-        normal = np.einsum("ij,ik->jk", jac, jac)      # einsum, not BLAS: small, and immune to thread contention
+        jac = jacobian(theta)
+        gradient = np.einsum("ij,i->j", jac, f)
+        normal = np.einsum("ij,ik->jk", jac, jac)
         movable = ~((theta[index] <= LOWER[index]) & (gradient > 0))
+        h = normal[np.ix_(movable, movable)]
         while True:
             step = np.zeros(index.size)
-            h = normal[np.ix_(movable, movable)]
             step[movable] = np.linalg.solve(h + damping * np.diag(np.diag(h) + 1e-30), -gradient[movable])
             trial = theta.copy()
             trial[index] = np.maximum(theta[index] + step, LOWER[index])
-            r_trial, cost_trial = evaluate(trial)
-            if cost_trial <= cost:
+            f_trial = function(trial)
+            cost_trial = float(f_trial @ f_trial)
+            if cost_trial <= cost or damping > 1e12:
                 break
             damping *= 10.0
-            if damping > 1e12:
-                break
         if cost_trial > cost:
             break
         converged = cost - cost_trial <= 1e-12 * cost
-        theta, r, cost = trial, r_trial, cost_trial
+        theta, f, cost = trial, f_trial, cost_trial
         damping = max(damping / 10.0, 1e-12)
         if converged:
             break
-    lhs, rhs = model.sides(theta, w)
-    return _Fit(theta, cost, lhs - rhs, weighted_jacobian(theta))
+    return theta
 
 
 def _covariance(fit: _Fit, scale: np.ndarray, piece: np.ndarray) -> np.ndarray:
-    """Covariance of the free parameters: (J^T J)^-1 s^2, widened by (1 + r1) / (1 - r1) for a lag-1 correlation
-    r1 > 0 of the weighted residuals between consecutive windows of a stretch (fewer independent windows)."""
+    """Covariance of the free parameters, s^2 (Z^T J)^-1 Z^T Z (J^T Z)^-1 (instrumental variables), widened by
+    (1 + r1) / (1 - r1) for a lag-1 correlation r1 > 0 of the weighted residuals between consecutive windows of a
+    stretch (fewer independent windows than windows)."""
     weighted = fit.residual / scale
     n, p = weighted.size, fit.jacobian.shape[1]
     s2 = float(np.sum(weighted**2)) / max(n - p, 1)
     same = piece[1:] == piece[:-1]
     r1 = float(np.sum(weighted[1:][same] * weighted[:-1][same]) / np.sum(weighted**2))
     widen = (1 + r1) / (1 - r1) if 0 < r1 < 1 else 1.0
-    return np.linalg.pinv(fit.jacobian.T @ fit.jacobian) * s2 * widen
+    return _sandwich(fit.jacobian, fit.instruments) * s2 * widen
+
+
+def _sandwich(jac: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(Z^T J)^-1 Z^T Z (J^T Z)^-1: the instrumental-variables covariance per unit residual variance."""
+    inverse = np.linalg.inv(np.einsum("ij,ik->jk", z, jac))
+    return inverse @ np.einsum("ij,ik->jk", z, z) @ inverse.T
 
 
 def _collinearity(jacobian: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-    """(blind, vif, correlation) of the column-scaled Jacobian: the direction the fit cannot see at all (or None),
-    each parameter's variance inflation factor 1 / (1 - R_j^2) (R_j: how well the other columns reproduce its own)
-    and the parameters' correlation matrix."""
+    """(blind, vif, correlation) of the regressors (the Jacobian's columns scaled to unit length): the parameter
+    direction the data cannot see at all (or None), each parameter's variance inflation factor 1 / (1 - R_j^2)
+    (R_j: how well the other columns reproduce its own) and the parameters' correlations."""
     norms = np.linalg.norm(jacobian, axis=0)
+    p = norms.size
     if np.any(norms == 0):
-        return (norms == 0).astype(float), np.full(norms.size, np.inf), np.eye(norms.size)
+        return (norms == 0).astype(float), np.full(p, np.inf), np.eye(p)
     scaled = jacobian / norms
     normal = np.einsum("ij,ik->jk", scaled, scaled)
     eigenvalues, vectors = np.linalg.eigh(normal)               # singular values squared, ascending
     if eigenvalues[0] < STRUCTURAL**2 * eigenvalues[-1]:
-        return vectors[:, 0], np.full(norms.size, np.inf), np.eye(norms.size)
+        return vectors[:, 0], np.full(p, np.inf), np.eye(p)
     inverse = np.linalg.inv(normal)
     vif = np.diag(inverse)
     return None, vif, inverse / np.sqrt(np.outer(vif, vif))
@@ -413,7 +521,7 @@ def _culprit(candidates: list[str], rank: dict[str, float]) -> str:
 
 
 def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
-             window: float = WINDOW) -> Identification:
+             window: float = WINDOW, smoothing: float = SMOOTHING) -> Identification:
     """Fit the model's unknowns to `runs`, starting from (and falling back on) `prior`; see the module docstring.
 
     net_buoyancy: the vehicle's measured weight in water, B - W in N (positive: it floats), or None to keep the
@@ -427,24 +535,31 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     theta0 = _prior_vector(prior)
     status = {}
     if net_buoyancy is None:
-        status["thrust_scale.forward"] = ("prior: the level of all forces is set by the thrusters' bench data "
-                                          "(give --net-buoyancy to fit it)")
+        status["thrust_scale.forward"] = ("prior: motion shows forces only relative to the thrust, so the thrusters' "
+                                          "bench data set the level (give --net-buoyancy to fit it)")
     else:
         theta0[names.index("buoyancy")] = prior.weight + net_buoyancy
-        status["buoyancy"] = f"given: weight in water {-net_buoyancy:+.2f} N (--net-buoyancy)"
-    data = _Data(runs, prior, window)
+        status["buoyancy"] = f"given: net buoyancy {net_buoyancy:+.2f} N (--net-buoyancy)"
+    data = _Data(runs, prior, window, smoothing)
     model = _Model(prior)
-    period = float(np.median(np.concatenate([np.diff(r.t) for r in runs])))
 
     def free_mask() -> np.ndarray:
         return np.array([n not in status for n in names])
 
-    first = data.windows(0.0)
+    _structure(model, data, prior, theta0, names, status, free_mask)
+    if not free_mask().any():
+        raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
+                                  "(fly missions/identify.yaml)")
+    period = float(np.median(np.concatenate([np.diff(r.t) for r in runs])))
+    first = data.measured_windows(0.0)
     scale = np.maximum(np.sqrt(np.mean(model.sides(theta0, first)[1] ** 2, axis=0)), 1e-6)
-    delays = np.linspace(0.0, 2.0 * period, DELAY_STEPS)
-    trials = [(_fit(model, data.windows(d), theta0, free_mask(), scale), d) for d in delays]
-    best, delay = min(trials, key=lambda trial: trial[0].cost)
-    windows = data.windows(delay)
+
+    def instruments_at(delay: float):
+        return lambda th: data.reference_windows(delay, data.demand(_vehicle(prior, th, model)))
+
+    delay = _delay(model, data, prior, theta0, free_mask(), scale, period)
+    windows, instruments = data.measured_windows(delay), instruments_at(delay)
+    best = _fit(model, windows, theta0, free_mask(), scale, instruments)
     scale = np.maximum(np.sqrt(np.mean(best.residual**2, axis=0)), 1e-9)
     theta = best.theta
     while True:
@@ -452,33 +567,22 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         if not free.any():
             raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
                                       "(fly missions/identify.yaml)")
-        start = np.where(free, theta, theta0)
-        fit = _fit(model, windows, start, free, scale)
+        fit = _fit(model, windows, np.where(free, theta, theta0), free, scale, instruments)
         index = np.flatnonzero(free)
-        blind, vif, correlation = _collinearity(fit.jacobian)
-        if blind is not None:
-            loading = dict(zip((names[i] for i in index), np.abs(blind) / np.abs(blind).max()))
-            involved = [n for n, v in loading.items() if v > 0.3]
-            culprit = _culprit(involved, loading)
-            others = ", ".join(n for n in involved if n != culprit) or "nothing (not excited)"
-            status[culprit] = f"prior: not separable from {others}"
-            continue
-        if vif.max() > VIF_MAX:
-            ranked = dict(zip((names[i] for i in index), vif))
-            culprit = _culprit([n for n, v in ranked.items() if v > VIF_MAX], ranked)
-            row = correlation[[names[i] for i in index].index(culprit)]
-            partners = [names[index[j]] for j in np.argsort(-np.abs(row))[1:4] if abs(row[j]) > 0.5]
-            status[culprit] = (f"prior: collinear with {', '.join(partners) or 'the rest'} (variance inflation "
-                               f"{ranked[culprit]:.0f}): the data cannot tell them apart")
-            continue
         half = Z95 * np.sqrt(np.maximum(np.diag(_covariance(fit, scale, windows.piece)), 0.0))
-        allowed = np.array([max(RELATIVE_PRECISION * max(abs(fit.theta[i]), abs(theta0[i])), params[i].floor)
+        allowed = np.array([max(params[i].precision * max(abs(fit.theta[i]), abs(theta0[i])), params[i].floor)
                             for i in index])
         worst = int(np.argmax(half / allowed))
         if half[worst] > allowed[worst]:
             i = index[worst]
             status[names[i]] = (f"prior: the data do not pin it down (fitted {fit.theta[i]:.4g} "
                                 f"+/- {half[worst]:.2g} {params[i].unit})".replace(" )", ")"))
+            continue
+        below = [i for i in index if fit.theta[i] < LOWER[i]]
+        if below:
+            i = min(below, key=lambda j: fit.theta[j] / max(abs(theta0[j]), params[j].floor))
+            theta0[i] = LOWER[i]
+            status[names[i]] = f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, below {LOWER[i]:g}: held there"
             continue
         theta = fit.theta
         break
@@ -493,6 +597,60 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
                  for i, d in enumerate(DOFS))
     return Identification(_vehicle(prior, theta, model), estimates, fits, float(delay), int(len(windows.duration)),
                           duration)
+
+
+def _delay(model: _Model, data: _Data, prior: Vehicle, theta0: np.ndarray, free: np.ndarray, scale: np.ndarray,
+           period: float) -> float:
+    """The command-to-thrust delay (s): where the moment condition z_d^T r = 0 holds, z_d being how the thrust side
+    changes with the delay on the reference (the instrument of the delay) and r the residuals of the fit at that
+    delay. Tried on a grid of DELAY_STEPS over two control periods, the zero interpolated between its points.
+    (Not the delay of least residual: the controller's reaction to sensor noise is in the thrust, so the residual
+    is smallest at a delay that lines that reaction up with the noise.)"""
+    delays = np.linspace(0.0, 2.0 * period, DELAY_STEPS)
+    h = 0.25 * (delays[1] - delays[0])
+    moments = []
+    for d in delays:
+        fit = _fit(model, data.measured_windows(d), theta0, free, scale,
+                   lambda th, d=d: data.reference_windows(d, data.demand(_vehicle(prior, th, model))))
+        demand = data.demand(_vehicle(prior, fit.theta, model))
+        ahead, behind = data.reference_windows(d + h, demand), data.reference_windows(d - h, demand)
+        change = (model.sides(fit.theta, ahead)[1] - model.sides(fit.theta, behind)[1]) / scale
+        moments.append(float(np.sum(change * fit.residual / scale)) / float(np.sqrt(np.sum(change**2))))
+    moments = np.array(moments)
+    crossing = np.flatnonzero(np.sign(moments[:-1]) * np.sign(moments[1:]) <= 0)
+    if crossing.size == 0:
+        return float(delays[np.argmin(np.abs(moments))])
+    k = crossing[0]
+    return float(delays[k] + (delays[k + 1] - delays[k]) * moments[k] / (moments[k] - moments[k + 1]))
+
+
+def _structure(model: _Model, data: _Data, prior: Vehicle, theta0: np.ndarray, names: list[str],
+               status: dict[str, str], free_mask) -> None:
+    """Keep at the prior, one at a time, what the excitation cannot show whatever the noise: judged on the flight
+    the prior model would need to fly the logged reference (noise-free regressors, each DOF weighted by its force),
+    a parameter direction it cannot see at all, then a parameter whose variance inflation exceeds VIF_MAX."""
+    reference = data.reference_windows(0.0, data.demand(_vehicle(prior, theta0, model)))
+    force = np.maximum(np.sqrt(np.mean(model.sides(theta0, reference)[1] ** 2, axis=0)), 1e-9)
+    while (free := free_mask()).any():
+        index = np.flatnonzero(free)
+        blind, vif, correlation = _collinearity(
+            (model.jacobian(theta0, reference)[:, :, index] / force[None, :, None]).reshape(-1, index.size))
+        named = [names[i] for i in index]
+        if blind is not None:
+            loading = dict(zip(named, np.abs(blind) / np.abs(blind).max()))
+            involved = [n for n, v in loading.items() if v > 0.3]
+            culprit = _culprit(involved, loading)
+            others = ", ".join(n for n in involved if n != culprit) or "nothing (not excited)"
+            status[culprit] = f"prior: not separable from {others}"
+        elif vif.max() > VIF_MAX:
+            ranked = dict(zip(named, vif))
+            culprit = _culprit([n for n, v in ranked.items() if v > VIF_MAX], ranked)
+            row = correlation[named.index(culprit)]
+            partners = [named[j] for j in np.argsort(-np.abs(row))[1:4] if abs(row[j]) > 0.5]
+            status[culprit] = (f"prior: collinear with {', '.join(partners) or 'the rest'} (variance inflation "
+                               f"{ranked[culprit]:.0f}): the data cannot tell them apart")
+        else:
+            return
 
 
 def _vehicle(prior: Vehicle, theta: np.ndarray, model: _Model) -> Vehicle:
