@@ -59,6 +59,7 @@ MIN_DURATION = 30.0           # s of flight in all runs together
 GAP_FACTOR = 3.0              # a tick further than this many median periods from the last starts a new piece
 DELAY_STEPS = 5               # delays tried: 0, 1/2, ..., 2 control periods
 VOLTAGE_RESOLUTION = 0.01     # V: the bench thrust is looked up at the logged voltage rounded to this
+STILL_THRUST = 0.1            # N: logs whose thrusters never pushed harder than this have nothing to fit
 RELATIVE_PRECISION = 0.1      # a fitted value is kept when its 95 % CI half-width is within 10 % of its size
 ARM_PRECISION = 0.01          # ... 1 % for a moment arm, which a ruler measures about that well
 FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's mass (inertia) in the DOF's units
@@ -88,6 +89,7 @@ class Run:
     thrusts: np.ndarray   # (N, 8) N, what the controller allocated (its sign tells a mirrored PWM)
     voltage: np.ndarray   # (N,) V the controller mapped thrust to PWM at
     reference: np.ndarray  # (N, 18) eta_d, eta_dot_d, eta_ddot_d the controller was tracking
+    age: np.ndarray       # (N,) s of vehicle time from the state to the command leaving (0 for an ideal loop)
 
 
 @dataclass(frozen=True)
@@ -179,11 +181,12 @@ def _cumulative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(steps, axis=0)])
 
 
-def _lagged_integral(t: np.ndarray, u: np.ndarray, delay: float, lag: float) -> np.ndarray:
-    """int_{t[0]}^{t_k} f dt at every tick (N, n), for commands u (N, n) held from t_k + delay to t_(k+1) + delay
-    (none before), through a first-order lag T_f f_dot = u - f of time constant `lag` s: int f = int u - T_f f."""
+def _lagged_integral(t: np.ndarray, sent: np.ndarray, u: np.ndarray, delay: float, lag: float) -> np.ndarray:
+    """int_{t[0]}^{t_k} f dt at every tick (N, n), for commands u (N, n) sent at vehicle times `sent` (N,) and held
+    from sent_k + delay to sent_(k+1) + delay (none before), through a first-order lag T_f f_dot = u - f of time
+    constant `lag` s: int f = int u - T_f f."""
     period = np.median(np.diff(t))
-    s = np.concatenate([t, [t[-1] + period]]) + delay           # (N+1,) hold breakpoints
+    s = np.concatenate([sent, [sent[-1] + period]]) + delay     # (N+1,) hold breakpoints
     held = np.diff(s)[:, None]
     cum = np.concatenate([np.zeros((1, u.shape[1])), np.cumsum(u * held, axis=0)])   # int u at s_k
     decay = np.exp(-held / lag) if lag > 0 else np.zeros_like(held)
@@ -246,6 +249,19 @@ def _state_integrals(t: np.ndarray, eta: np.ndarray, nu: np.ndarray, a: np.ndarr
                 rho=integral[:, 54:57])
 
 
+@dataclass(frozen=True)
+class _Piece:
+    """An unbroken stretch of a run, and the windows it is cut into."""
+
+    t: np.ndarray          # (N,) s, the states' times
+    sent: np.ndarray       # (N,) s, when each command left (vehicle time)
+    nominal: np.ndarray    # (N, 8) N, the bench thrust of each command
+    reference: np.ndarray  # (N, 18)
+    a: np.ndarray          # (W,) first tick of each window
+    b: np.ndarray          # (W,) last tick
+    samples: int           # span of the smoothing, ticks (odd; 1: none)
+
+
 class _Data:
     """The runs cut into windows, as measured and as the reference asked; thrust integrals for any delay."""
 
@@ -253,7 +269,7 @@ class _Data:
         t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2)))
         self.lag = prior.thruster_time_constant
         rigid = prior.rigid_body_mass_matrix
-        self.pieces = []                     # (t, bench thrust, reference, a, b, samples) per unbroken stretch
+        self.pieces: list[_Piece] = []
         measured, asked = [], []
         for run in runs:
             nominal = _nominal_thrusts(run, t200)
@@ -261,11 +277,12 @@ class _Data:
                 t = run.t[piece]
                 period = np.median(np.diff(t))
                 step = max(1, int(round(window / period)))
-                samples = 2 * int(round(0.5 * smoothing / period)) + 1
                 a = np.arange(0, len(t) - step, step)
-                if a.size == 0 or len(t) < samples:
+                if a.size == 0:
                     continue
                 b = a + step
+                samples = min(2 * int(round(0.5 * smoothing / period)) + 1, len(t) - 1 + len(t) % 2)
+                sent = np.maximum.accumulate(t + np.clip(run.age[piece], 0.0, GAP_FACTOR * period))
                 ref = run.reference[piece]
                 eta_d = ref[:, :6]
                 nu_d = np.linalg.solve(jacobian(eta_d), ref[:, 6:12, None])[..., 0]
@@ -273,37 +290,40 @@ class _Data:
                 measured.append(_state_integrals(t, run.eta[piece], run.nu[piece], a, b, rigid, samples)
                                 | {"piece": label})
                 asked.append(_state_integrals(t, eta_d, nu_d, a, b, rigid, 1) | {"piece": label})
-                self.pieces.append((t, nominal[piece], ref, a, b, samples))
+                self.pieces.append(_Piece(t, sent, nominal[piece], ref, a, b, samples))
         if not measured:
             raise IdentificationError("the logs hold no stretch of flight longer than one window")
+        if max(np.abs(p.nominal).max() for p in self.pieces) < STILL_THRUST:
+            raise IdentificationError("the thrusters never pushed in these logs: nothing to fit "
+                                      "(fly missions/identify.yaml)")
         self.measured = {k: np.concatenate([m[k] for m in measured]) for k in measured[0]}
         self.asked = {k: np.concatenate([m[k] for m in asked]) for k in asked[0]}
 
     def _thrust(self, commands: list[np.ndarray], delay: float, smooth: bool) -> dict[str, np.ndarray]:
         pos, neg = [], []
-        for (t, _, _, a, b, samples), u in zip(self.pieces, commands):
+        for p, u in zip(self.pieces, commands):
             for side, part in ((pos, np.maximum(u, 0.0)), (neg, np.minimum(u, 0.0))):
-                cum = _smooth(_lagged_integral(t, part, delay, self.lag), samples if smooth else 1)
-                side.append(cum[b] - cum[a])
+                cum = _smooth(_lagged_integral(p.t, p.sent, part, delay, self.lag), p.samples if smooth else 1)
+                side.append(cum[p.b] - cum[p.a])
         return {"thrust_pos": np.concatenate(pos), "thrust_neg": np.concatenate(neg)}
 
     def measured_windows(self, delay: float) -> _Windows:
         """The measured windows, the bench thrust delayed by `delay` s and smoothed as the states are (the same
         linear filter on every term keeps the balance exact)."""
-        return _Windows(**self.measured, **self._thrust([p[1] for p in self.pieces], delay, True))
+        return _Windows(**self.measured, **self._thrust([p.nominal for p in self.pieces], delay, True))
 
     def design_windows(self, delay: float) -> _Windows:
         """The reference's windows with the bench thrust actually sent: the regression's design without the sensors'
         noise, to judge what the excitation can tell apart."""
-        return _Windows(**self.asked, **self._thrust([p[1] for p in self.pieces], delay, False))
+        return _Windows(**self.asked, **self._thrust([p.nominal for p in self.pieces], delay, False))
 
     def demand(self, vehicle: Vehicle) -> list[np.ndarray]:
         """Per stretch, the bench thrust (N, 8) `vehicle` would need to fly the reference exactly (Eq. 2.17 with
         e = 0: `tuning.feedforward`, allocated by the pseudo-inverse)."""
         allocate = np.linalg.pinv(allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions))
         commands = []
-        for _, _, ref, _, _, _ in self.pieces:
-            thrust = np.einsum("ij,nj->ni", allocate, feedforward(vehicle, ref))
+        for p in self.pieces:
+            thrust = np.einsum("ij,nj->ni", allocate, feedforward(vehicle, p.reference))
             commands.append(thrust / np.where(thrust > 0, vehicle.thrust_scale[0], vehicle.thrust_scale[1]))
         return commands
 

@@ -1,0 +1,109 @@
+"""`rov-mav identify`: fit the vehicle model to run logs and write it as a vehicle file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from rov_mav.commands.common import positive_float
+
+DESCRIPTION = """\
+Fit the vehicle model the controller uses to one or more run logs (`rov-mav run --log DIR`), ideally of
+missions/identify.yaml flown on the vehicle to identify, and write it as a vehicle file that --vehicle accepts.
+
+Fitted, as far as the logs can tell them apart: added mass, linear and quadratic damping (per DOF), buoyancy and
+its lever r_b - r_g, the thrusters' force per PWM (a scale on the T200 data, forward and reverse) and their moment
+arms (roll, pitch, yaw), plus the delay from command to thrust. Mass, inertia and the centre of gravity come from
+the prior (--vehicle), which also stands wherever the data cannot see: each parameter is printed with its 95 %
+confidence interval, or with the reason it kept the prior, and each DOF with how much of its force the model
+explains (R^2) and the residual left (RMS).
+
+One number cannot come from motion: scaling every force of the model and the thrust together changes nothing the
+vehicle does. The thrusters' bench data set that level unless --net-buoyancy gives the vehicle's weight in water
+(weigh it hanging from a spring scale, fully submerged): then the thrust scale is fitted too.
+"""
+
+EPILOG = """\
+examples:
+  rov-mav run --target tcp:127.0.0.1:5760 missions/identify.yaml --log out/identify
+  rov-mav identify out/identify --out my_rov.yaml
+  rov-mav identify out/identify out/identify2 --net-buoyancy 2.5 --out my_rov.yaml
+  rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml --vehicle my_rov.yaml
+
+exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
+"""
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("identify", help="fit the vehicle model to run logs and write a vehicle file",
+                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("logs", nargs="+", metavar="LOG_DIR", help="run log directories (`rov-mav run --log DIR`)")
+    p.add_argument("--out", required=True, metavar="FILE", help="vehicle file to write")
+    p.add_argument("--vehicle", metavar="FILE",
+                   help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
+                        "shipped BlueROV2 Heavy)")
+    p.add_argument("--net-buoyancy", type=float, metavar="N",
+                   help="buoyancy minus weight in N, measured (positive: it floats); fixes the level of all forces "
+                        "so that the thrust scale can be fitted")
+    p.add_argument("--window", type=positive_float, default=None, metavar="S",
+                   help="length of the integration windows in s (default 0.4)")
+    p.set_defaults(func=main)
+
+
+def load_run(directory: str):
+    """A run log as an identification `Run` (LogError, one line, if it is not a flight's log)."""
+    from rov_mav.flight.runlog import BODY, DOF, read_ticks
+    from rov_mav.offline.identification import Run
+
+    reference = [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF] + [f"{d}_ddot_d" for d in DOF]
+    pwm, thrust = [f"pwm_{i}" for i in range(1, 9)], [f"thrust_{i}" for i in range(1, 9)]
+    data = read_ticks(directory, ("t", *DOF, *BODY, *reference, *pwm, *thrust, "battery_voltage", "telemetry_age"))
+
+    def stack(columns):
+        return np.stack([data[c] for c in columns], axis=1)
+
+    return Run(directory, data["t"], stack(DOF), stack(BODY), stack(pwm), stack(thrust), data["battery_voltage"],
+               stack(reference), data["telemetry_age"])
+
+
+def _report(result, logs: list[str], out: str) -> str:
+    from rov_mav.offline.identification import WINDOW
+
+    lines = [f"identify: {len(logs)} log{'s' if len(logs) > 1 else ''}, {result.duration:.1f} s of flight in "
+             f"{result.windows} windows, command-to-thrust delay {result.delay * 1e3:.1f} ms",
+             f"  {'parameter':<28} {'value':>11} {'95 % CI':>10} {'prior':>10}  unit"]
+    for e in result.estimates:
+        ci = f"+/-{e.half_width:.3g}" if np.isfinite(e.half_width) else ""
+        lines.append(f"  {e.name:<28} {e.value:>11.5g} {ci:>10} {e.prior:>10.5g}  {e.unit:<14}"
+                     + ("" if e.status == "fitted" else f"  {e.status}"))
+    vehicle = result.vehicle
+    lines.append(f"  net buoyancy {vehicle.buoyancy - vehicle.weight:+.2f} N; centre of buoyancy "
+                 f"{np.round(vehicle.center_of_buoyancy * 1e3, 1).tolist()} mm")
+    lines.append("fit per DOF (windows of %g s): " % WINDOW + "; ".join(
+        f"{f.dof} R^2 {f.r2:.4f}, residual RMS {f.rms:.3g} {f.unit}" for f in result.fits))
+    kept = [e.name for e in result.estimates if e.status.startswith("prior")]
+    lines.append(f"kept at the prior (not identifiable from these logs): {', '.join(kept) or 'nothing'}")
+    lines.append(f"wrote {out} (fly with it: rov-mav run --vehicle {out} MISSION)")
+    return "\n".join(lines)
+
+
+def main(args: argparse.Namespace) -> int:
+    from rov_mav.flight.runlog import LogError
+    from rov_mav.model.vehicle import load_vehicle, save_vehicle
+    from rov_mav.offline.identification import WINDOW, IdentificationError, identify
+
+    prior = load_vehicle(args.vehicle)
+    try:
+        runs = [load_run(d) for d in args.logs]
+        result = identify(runs, prior, args.net_buoyancy, args.window or WINDOW)
+    except (LogError, IdentificationError) as exc:
+        print(f"rov-mav identify: error: {exc}", file=sys.stderr)
+        return 2
+    fitted = sum(e.status == "fitted" for e in result.estimates)
+    header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
+              f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
+              + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
+    save_vehicle(result.vehicle, args.out, header)
+    print(_report(result, args.logs, args.out), flush=True)
+    return 0
