@@ -42,8 +42,9 @@ from sim_bridge.physics import Physics
 IDENTIFY = MISSIONS / "identify.yaml"
 TOLERANCE = 0.05            # relative, clean logs
 NOISY_TOLERANCE = 0.10      # relative, a log with sensor noise
-BRIDGE_TOLERANCE = 0.25     # relative, over the bridge on a loaded machine (see test_over_the_bridge)
-MIN_R2 = 0.8                # share of each DOF's force the model must explain over the bridge
+BRIDGE_TOLERANCE = 0.10     # relative, over the bridge on a loaded machine (see test_over_the_bridge)
+BRIDGE_SPEEDUP = 5.0
+MIN_R2 = 0.95               # share of the excited DOFs' force the model must explain over the bridge
 # Sensor noise of the noisy flight (std dev per sample at 50 Hz; the controller flies on it too): position, attitude,
 # velocity, rate. Of the order of an EKF fed by a DVL.
 NOISE = (0.01, 0.005, 0.01, 0.01)
@@ -315,36 +316,52 @@ def _still(target: Path) -> Path:
 # -- the real path -----------------------------------------------------------------------------------------------
 
 
-def test_over_the_bridge(tmp_path, capsys):
-    """The user's path: `rov-mav sim-bridge --vehicle plant.yaml` as the vehicle, `rov-mav run --log` flying
-    identify.yaml against it over UDP, `rov-mav identify` on that log, and its file back through --vehicle.
+SHORT_EXCITATION = """name: identify-short
+description: the surge and heave part of missions/identify.yaml
+start: {position: [0.0, 0.0, 1.5], heading: 0 deg}
+path:
+  - {goto: [2.0, 0.0, 1.5], speed: 0.15}
+  - {goto: [0.0, 0.0, 1.5], speed: 0.5}
+  - {excite: surge, amplitude: 0.5, band: [0.1, 0.6], duration: 20}
+  - {excite: heave, amplitude: 0.4, band: [0.1, 0.6], duration: 20}
+limits: {max_depth: 3.0, max_tracking_error: 1.0, max_thrust: 40.0}
+"""
 
-    The link adds what the in-process loop has not: a command acts some milliseconds of vehicle time after the
-    state it answers, varying with the machine's load (the runner's telemetry_age and the fitted delay absorb it),
-    and telemetry goes stale now and then (the fit skips those stretches). So this checks what must hold whatever
-    the load: the flight excites every DOF, the model found explains it, and the file round-trips; the 5 %
-    recovery is the in-process tests' job."""
-    plant_file = tmp_path / "plant.yaml"
+
+def test_over_the_bridge(tmp_path, capsys):
+    """The user's path: `rov-mav sim-bridge --vehicle plant.yaml` as the vehicle, `rov-mav run --log` flying an
+    excitation against it over UDP, `rov-mav identify` on that log, and its file back through --vehicle.
+
+    Only the surge and heave part of identify.yaml (61 s, at --speedup BRIDGE_SPEEDUP: a loaded machine holds it),
+    so that the test also shows what identify does with what was not excited: sway, roll, pitch and yaw stay at
+    the prior, each saying why. What was excited comes back within BRIDGE_TOLERANCE: the link adds what the
+    in-process loop has not (a command acts milliseconds of vehicle time after the state it answers, varying with
+    the load: the runner's telemetry age and the fitted delay absorb most of it; stale stretches are skipped)."""
+    plant_file, mission = tmp_path / "plant.yaml", tmp_path / "short.yaml"
     save_vehicle(PLANT, plant_file)
+    mission.write_text(SHORT_EXCITATION)
     log, out = tmp_path / "log", tmp_path / "identified.yaml"
-    bridge = BridgeProcess(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.5", speedup=10.0)
-    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(IDENTIFY), "--log", str(log),
-                       "--heartbeat-timeout", "60") as run, bridge:
+    bridge = BridgeProcess(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.5", speedup=BRIDGE_SPEEDUP)
+    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--log", str(log),
+                       "--rerun", "off", "--heartbeat-timeout", "60") as run, bridge:
         assert run.wait() == 0, run.output
-    assert "identify / fuzzy: completed" in run.output
-    code, stdout, stderr = identify_cli(capsys, log, "--net-buoyancy", f"{NET_BUOYANCY:.4f}", "--out", out)
+    code, stdout, stderr = identify_cli(capsys, log, "--net-buoyancy", repr(NET_BUOYANCY), "--out", out)
     print(stdout)
     assert code == 0 and stderr == ""
+    table = {m[0]: (float(m[1]), m[2]) for m in re.findall(r"^  ([a-z_.]+)\s+(-?[\d.e+-]+)(.*)$", stdout, re.MULTILINE)}
+    for name in ("added_mass.surge", "quadratic_damping.surge", "added_mass.heave", "quadratic_damping.heave",
+                 "thrust_scale.forward", "thrust_scale.reverse"):
+        value, rest = table[name]
+        print(f"{name}: {value:.4g} (plant {truth(name):.4g}, {(value / truth(name) - 1) * 100:+.1f} %)")
+        assert "prior" not in rest and abs(value / truth(name) - 1.0) <= BRIDGE_TOLERANCE, name
+    kept = re.search(r"kept at the prior \(not identifiable from these logs\): (.*)", stdout).group(1)
+    assert {"added_mass.sway", "added_mass.roll", "added_mass.pitch", "added_mass.yaw"} <= set(kept.split(", "))
     r2 = {m[0]: float(m[1]) for m in re.findall(r"(\w+) R\^2 ([\d.]+)", stdout)}
-    assert set(r2) == {"surge", "sway", "heave", "roll", "pitch", "yaw"}
-    assert min(r2.values()) >= MIN_R2, r2
+    assert r2["surge"] >= MIN_R2 and r2["heave"] >= MIN_R2, r2
     vehicle = load_vehicle(out)
-    table = {m[0]: float(m[1]) for m in re.findall(r"^  (\S+)\s+(\S+)", stdout, re.MULTILINE)}
-    assert vehicle.thrust_scale[0] == pytest.approx(table["thrust_scale.forward"], rel=1e-4)
-    assert vehicle.added_mass[0] == pytest.approx(table["added_mass.surge"], rel=1e-4)
-    for name in ("thrust_scale.forward", "thrust_scale.reverse", "quadratic_damping.surge"):
-        print(f"{name}: {table[name]:.4g} (plant {truth(name):.4g}, {(table[name] / truth(name) - 1) * 100:+.1f} %)")
-        assert abs(table[name] / truth(name) - 1.0) <= BRIDGE_TOLERANCE, name
+    assert vehicle.thrust_scale[0] == pytest.approx(table["thrust_scale.forward"][0], rel=1e-4)
+    assert vehicle.added_mass[0] == pytest.approx(table["added_mass.surge"][0], rel=1e-4)
+    assert vehicle.added_mass[1] == load_vehicle().added_mass[1]         # kept: the prior's, exactly
 
 
 # -- the parts ---------------------------------------------------------------------------------------------------

@@ -64,7 +64,8 @@ RELATIVE_PRECISION = 0.1      # a fitted value is kept when its 95 % CI half-wid
 ARM_PRECISION = 0.01          # ... 1 % for a moment arm, which a ruler measures about that well
 FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's mass (inertia) in the DOF's units
 STRUCTURAL = 1e-6             # singular value ratio of the column-scaled Jacobian below which a direction is blind
-VIF_MAX = 1000.0              # variance inflation beyond which a parameter is too collinear with others to fit
+NOT_EXCITED = 1e-6            # a parameter whose forces are this small beside the largest one's is not excited
+VIF_MAX = 1.0e4               # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
 MAX_ITERATIONS = 50
 ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw")
@@ -566,7 +567,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     def free_mask() -> np.ndarray:
         return np.array([n not in status for n in names])
 
-    _structure(model, data, prior, theta0, names, status, free_mask)
+    _structure(model, data, prior, theta0, params, status, free_mask)
     if not free_mask().any():
         raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
                                   "(fly missions/identify.yaml)")
@@ -644,24 +645,31 @@ def _delay(model: _Model, data: _Data, prior: Vehicle, theta0: np.ndarray, free:
     return float(delays[k] + (delays[k + 1] - delays[k]) * moments[k] / (moments[k] - moments[k + 1]))
 
 
-def _structure(model: _Model, data: _Data, prior: Vehicle, theta0: np.ndarray, names: list[str],
+def _structure(model: _Model, data: _Data, prior: Vehicle, theta0: np.ndarray, params: list[_Parameter],
                status: dict[str, str], free_mask) -> None:
-    """Keep at the prior, one at a time, what the excitation cannot show whatever the noise: judged on the flight
-    the prior model would need to fly the logged reference (noise-free regressors, each DOF weighted by its force),
-    a parameter direction it cannot see at all, then a parameter whose variance inflation exceeds VIF_MAX."""
+    """Keep at the prior what the excitation cannot show whatever the noise, judged on the flight the prior model
+    would need to fly the logged reference (noise-free regressors, each DOF weighted by its force): a parameter the
+    reference never exercises; then, one at a time, a parameter direction the data cannot see at all, or a parameter
+    whose variance inflation exceeds VIF_MAX."""
+    names = [p.name for p in params]
     reference = data.reference_windows(0.0, data.demand(_vehicle(prior, theta0, model)))
-    force = np.maximum(np.sqrt(np.mean(model.sides(theta0, reference)[1] ** 2, axis=0)), 1e-9)
+    force = np.sqrt(np.mean(model.sides(theta0, reference)[1] ** 2, axis=0))
+    force = np.maximum(force, 1e-3 * force.max())
+    design = model.jacobian(theta0, reference) / force[None, :, None]
+    size = np.array([max(abs(v), p.floor, p.precision) for v, p in zip(theta0, params)])
+    effect = np.linalg.norm(design.reshape(-1, len(names)), axis=0) * size      # each parameter's share of the forces
+    for i in np.flatnonzero(free_mask() & (effect < NOT_EXCITED * effect.max())):
+        status[names[i]] = "prior: not excited in these logs"
     while (free := free_mask()).any():
         index = np.flatnonzero(free)
-        blind, vif, correlation = _collinearity(
-            (model.jacobian(theta0, reference)[:, :, index] / force[None, :, None]).reshape(-1, index.size))
+        blind, vif, correlation = _collinearity(design[:, :, index].reshape(-1, index.size))
         named = [names[i] for i in index]
         if blind is not None:
             loading = dict(zip(named, np.abs(blind) / np.abs(blind).max()))
-            involved = [n for n, v in loading.items() if v > 0.3]
+            involved = sorted((n for n, v in loading.items() if v > 0.3), key=lambda n: -loading[n])
             culprit = _culprit(involved, loading)
-            others = ", ".join(n for n in involved if n != culprit) or "nothing (not excited)"
-            status[culprit] = f"prior: not separable from {others}"
+            others = [n for n in involved if n != culprit]
+            status[culprit] = "prior: not separable from " + ", ".join(others[:4]) + (", ..." if others[4:] else "")
         elif vif.max() > VIF_MAX:
             ranked = dict(zip(named, vif))
             culprit = _culprit([n for n, v in ranked.items() if v > VIF_MAX], ranked)
