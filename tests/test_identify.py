@@ -269,7 +269,7 @@ def _rewind(lines: list[str]) -> list[str]:
     ("empty", "cannot read"),
     ("column", "no column battery_voltage"),
     ("garbled", "line 501: not"),
-    ("rewound", "line 702: time does not increase"),
+    ("rewound", "line 702: time goes back"),
     ("dry run", "a dry run"),
     ("short", "only 20.0 s of flight"),
     ("still", "the thrusters never pushed"),

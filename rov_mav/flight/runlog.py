@@ -106,7 +106,8 @@ class RunLog:
 
 def read_ticks(directory: str | Path, columns: tuple[str, ...] = tuple(COLUMNS)) -> dict[str, np.ndarray]:
     """`columns` of DIR/ticks.csv as float arrays (N,), after checking that DIR holds the log of a flight (not a
-    dry run: its events say so), every value is a finite number and the time increases; LogError otherwise."""
+    dry run: its events say so), every value is a finite number and the time never goes back (two ticks may share a
+    state's time); LogError otherwise."""
     directory = Path(directory)
     ticks, events = directory / "ticks.csv", directory / "events.csv"
     if not directory.is_dir():
@@ -136,7 +137,7 @@ def read_ticks(directory: str | Path, columns: tuple[str, ...] = tuple(COLUMNS))
             raise LogError(f"{ticks}: line {n + 2}: not {len(header)} numbers") from None
         if not np.all(np.isfinite(data[n])):
             raise LogError(f"{ticks}: line {n + 2}: a value is not finite")
-    if "t" in columns and np.any(np.diff(data[:, columns.index("t")]) <= 0):
-        line = int(np.argmax(np.diff(data[:, columns.index("t")]) <= 0)) + 3
-        raise LogError(f"{ticks}: line {line}: time does not increase")
+    if "t" in columns and np.any(np.diff(data[:, columns.index("t")]) < 0):
+        line = int(np.argmax(np.diff(data[:, columns.index("t")]) < 0)) + 3
+        raise LogError(f"{ticks}: line {line}: time goes back")
     return {c: data[:, i] for i, c in enumerate(columns)}

@@ -67,6 +67,14 @@ class Run:
     age: np.ndarray       # (N,) s of vehicle time from the state to the command leaving (0 for an ideal loop)
 
 
+def distinct(run: Run) -> Run:
+    """The run with one tick per state time: of ticks that share one (a second command on the same state), the
+    last, whose command is the one the vehicle held."""
+    keep = np.concatenate([np.diff(run.t) > 0, [True]])
+    return Run(run.name, *(getattr(run, f)[keep] for f in ("t", "eta", "nu", "pwm", "thrusts", "voltage", "reference",
+                                                           "age")))
+
+
 def stretches(run: Run) -> list[slice]:
     """Stretches of a run without a gap in its ticks (stale telemetry, a pause)."""
     dt = np.diff(run.t)
@@ -184,7 +192,7 @@ class Flights:
         rigid = prior.rigid_body_mass_matrix
         self.pieces: list[Piece] = []
         measured, asked = [], []
-        for run in runs:
+        for run in map(distinct, runs):
             nominal = bench_thrusts(run, t200)
             for piece in stretches(run):
                 t = run.t[piece]
