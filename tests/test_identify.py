@@ -227,8 +227,8 @@ def test_prints_intervals_and_fit_quality_and_writes_a_vehicle_file_that_loads_b
     for e in result.estimates:
         line = next(line for line in stdout.splitlines() if line.split()[:1] == [e.name])
         assert (f"+/-{e.half_width:.3g}" if e.status == "fitted" else e.status) in line, (e, line)
-    for dof in ("surge", "sway", "heave", "roll", "pitch", "yaw"):
-        assert f"{dof} R^2 " in stdout
+    for f in result.fits:
+        assert re.search(rf"^  {f.dof}\s+R\^2 {f.r2:.4f}  residual RMS {f.rms:.3g} {f.unit}$", stdout, re.MULTILINE)
     loaded = load_vehicle(out)
     for name in ("added_mass", "linear_damping", "quadratic_damping", "center_of_buoyancy", "thrust_scale",
                  "thruster_positions"):
@@ -360,7 +360,7 @@ def test_over_the_bridge(tmp_path, capsys):
     for name in ("added_mass.sway", "added_mass.roll", "added_mass.pitch", "added_mass.yaw", "quadratic_damping.yaw",
                  "lever.z"):
         assert name in kept.split(", ") and "not excited" in table[name][1], name
-    r2 = {m[0]: float(m[1]) for m in re.findall(r"(\w+) R\^2 ([\d.]+)", stdout)}
+    r2 = {m[0]: float(m[1]) for m in re.findall(r"^  (\w+)\s+R\^2 ([\d.]+)", stdout, re.MULTILINE)}
     assert r2["surge"] >= MIN_R2 and r2["heave"] >= MIN_R2, r2
     vehicle = load_vehicle(out)
     assert vehicle.thrust_scale[0] == pytest.approx(table["thrust_scale.forward"][0], rel=1e-4)

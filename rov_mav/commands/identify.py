@@ -67,21 +67,20 @@ def load_run(directory: str):
                stack(reference), data["telemetry_age"])
 
 
-def _report(result, logs: list[str], out: str) -> str:
-    from rov_mav.offline.identification import WINDOW
-
-    lines = [f"identify: {len(logs)} log{'s' if len(logs) > 1 else ''}, {result.duration:.1f} s of flight in "
-             f"{result.windows} windows, command-to-thrust delay {result.delay * 1e3:.1f} ms",
-             f"  {'parameter':<28} {'value':>11} {'95 % CI':>10} {'prior':>10}  unit"]
+def _report(result, logs: list[str], out: str, window: float) -> str:
+    """The table of parameters, the fit per DOF, what was kept, where the file went."""
+    n = len(logs)
+    lines = [f"identify: {n} log{'s' if n > 1 else ''}, {result.duration:.1f} s of flight in {result.windows} windows "
+             f"of {window:g} s, command-to-thrust delay {result.delay * 1e3:.1f} ms",
+             f"  {'parameter':<26} {'value':>12} {'95 % CI':>11} {'prior':>10}  {'unit':<14} status"]
     for e in result.estimates:
         ci = f"+/-{e.half_width:.3g}" if np.isfinite(e.half_width) else ""
-        lines.append(f"  {e.name:<28} {e.value:>11.5g} {ci:>10} {e.prior:>10.5g}  {e.unit:<14}"
-                     + ("" if e.status == "fitted" else f"  {e.status}"))
+        lines.append(f"  {e.name:<26} {e.value:>12.5g} {ci:>11} {e.prior:>10.5g}  {e.unit:<14} {e.status}")
     vehicle = result.vehicle
-    lines.append(f"  net buoyancy {vehicle.buoyancy - vehicle.weight:+.2f} N; centre of buoyancy "
+    lines.append(f"  net buoyancy {vehicle.buoyancy - vehicle.weight:+.2f} N (B - W); centre of buoyancy "
                  f"{np.round(vehicle.center_of_buoyancy * 1e3, 1).tolist()} mm")
-    lines.append("fit per DOF (windows of %g s): " % WINDOW + "; ".join(
-        f"{f.dof} R^2 {f.r2:.4f}, residual RMS {f.rms:.3g} {f.unit}" for f in result.fits))
+    lines.append("fit per DOF (R^2: the share of its force the model explains; residual: the RMS left, per window):")
+    lines += [f"  {f.dof:<6} R^2 {f.r2:.4f}  residual RMS {f.rms:.3g} {f.unit}" for f in result.fits]
     kept = [e.name for e in result.estimates if e.status.startswith("prior")]
     lines.append(f"kept at the prior (not identifiable from these logs): {', '.join(kept) or 'nothing'}")
     lines.append(f"wrote {out} (fly with it: rov-mav run --vehicle {out} MISSION)")
@@ -94,9 +93,10 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.offline.identification import WINDOW, IdentificationError, identify
 
     prior = load_vehicle(args.vehicle)
+    window = args.window or WINDOW
     try:
         runs = [load_run(d) for d in args.logs]
-        result = identify(runs, prior, args.net_buoyancy, args.window or WINDOW)
+        result = identify(runs, prior, args.net_buoyancy, window)
     except (LogError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)
         return 2
@@ -105,5 +105,5 @@ def main(args: argparse.Namespace) -> int:
               f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
               + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
     save_vehicle(result.vehicle, args.out, header)
-    print(_report(result, args.logs, args.out), flush=True)
+    print(_report(result, args.logs, args.out, window), flush=True)
     return 0
