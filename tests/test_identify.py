@@ -25,6 +25,7 @@ from conftest import MISSIONS
 from run_helpers import BridgeProcess, RunnerProcess
 
 from rov_mav import cli
+from rov_mav.config import ConfigError
 from rov_mav.commands.identify import load_run
 from rov_mav.control.controller import Controller, load_settings
 from rov_mav.flight.actuation import Actuation
@@ -394,3 +395,19 @@ def test_a_thrust_scale_moves_the_whole_curve_and_its_inverse():
     np.testing.assert_allclose(curve.thrust(pwm, 15.0), expected)
     thrust = np.linspace(-0.9 * curve.max_reverse(15.0), 0.9 * curve.max_forward(15.0), 41)
     np.testing.assert_allclose(curve.thrust(curve.pwm(thrust, 15.0), 15.0), thrust, atol=1e-9)
+
+
+@pytest.mark.parametrize("segment, problem", [
+    ("{excite: surge, amplitude: 10 deg, band: [0.1, 0.6], duration: 20}", "amplitude in m"),
+    ("{excite: roll, amplitude: 30, band: [0.1, 0.6], duration: 20}", "more than 2 pi radians"),
+    ("{excite: yaw, amplitude: 20 deg, band: [0.6, 0.1], duration: 20}", "low < high"),
+    ("{excite: heave, amplitude: 0.3, band: [0.02, 0.6], duration: 20}", "shorter than one period"),
+    ("{excite: sway, amplitude: 0.3, band: [0.1, 0.6]}", "needs a duration"),
+    ("{excite: pitch, amplitude: 5 deg, band: [0.1, 0.6], duration: 20, heading: 0}", "holds the pose"),
+    ("{hold: 5, band: [0.1, 0.6]}", "apply to excite"),
+])
+def test_bad_excite_segments_are_refused(segment, problem, tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(f"name: bad\nstart: {{position: [0, 0, 1]}}\npath:\n  - {segment}\n")
+    with pytest.raises(ConfigError, match=re.escape(problem)):
+        load_mission(path)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -43,12 +45,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--vehicle", metavar="FILE",
                    help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
                         "shipped BlueROV2 Heavy)")
-    p.add_argument("--net-buoyancy", type=float, metavar="N",
+    p.add_argument("--net-buoyancy", type=_finite, metavar="N",
                    help="buoyancy minus weight in N, measured (positive: it floats); fixes the level of all forces "
                         "so that the thrust scale can be fitted")
     p.add_argument("--window", type=positive_float, default=None, metavar="S",
                    help="length of the integration windows in s (default 0.4)")
     p.set_defaults(func=main)
+
+
+def _finite(text: str) -> float:
+    """Parse a finite number (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not np.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text}: expected a number")
+    return value
 
 
 def load_run(directory: str):
@@ -93,6 +106,9 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.offline.identification import WINDOW, IdentificationError, identify
 
     prior = load_vehicle(args.vehicle)
+    if not Path(args.out).absolute().parent.is_dir():
+        print(f"rov-mav identify: error: {args.out}: its directory does not exist", file=sys.stderr)
+        return 2
     window = args.window or WINDOW
     try:
         runs = [load_run(d) for d in args.logs]
@@ -104,6 +120,6 @@ def main(args: argparse.Namespace) -> int:
     header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
               f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
               + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
-    save_vehicle(result.vehicle, args.out, header)
+    save_vehicle(replace(result.vehicle, name=f"{prior.name}, identified"), args.out, header)
     print(_report(result, args.logs, args.out, window), flush=True)
     return 0

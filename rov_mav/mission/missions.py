@@ -21,7 +21,7 @@ from pydantic import AfterValidator, Field, model_validator
 from rov_mav import config
 from rov_mav.mission.excitation import AXES, SIGNALS, Excitation, excitation
 from rov_mav.model.environment import Environment, EnvironmentSchema
-from rov_mav.units import Angle, wrap_angle
+from rov_mav.units import Angle, parse_angle, wrap_angle
 
 MAX_DURATION = 24 * 3600.0  # s: longer than any dive; long soak runs fit
 MAX_SAMPLES = 1_440_000     # reference samples built at once: 4 h at 100 Hz (an offline run holds every step)
@@ -48,6 +48,7 @@ Name = Annotated[str, AfterValidator(_folder_name)]
 
 REFERENCE_COLUMNS = 18   # eta_d (6), eta_dot_d (6), eta_ddot_d (6)
 SEGMENT_KINDS = ("goto", "hold", "line", "excite")
+TRANSLATIONS = ("surge", "sway", "heave")
 
 
 class _StartSchema(config.StrictModel):
@@ -65,7 +66,7 @@ class _SegmentSchema(config.StrictModel):
     ramp_up: bool = True            # line only: false starts at full velocity (the report's Eq. 3.1)
     excite: Literal[AXES] | None = None          # body axis to excite around the held pose
     signal: Literal[SIGNALS] = "multisine"       # excite only
-    amplitude: Angle | None = None  # excite only: peak offset, m (surge, sway, heave) or an angle (roll, pitch, yaw)
+    amplitude: float | str | None = None   # excite only: peak offset, m (surge, sway, heave) or an angle (the rest)
     band: Annotated[list[Positive], Field(min_length=2, max_length=2)] | None = None   # excite only: Hz, low, high
 
     @model_validator(mode="after")
@@ -97,7 +98,9 @@ class _SegmentSchema(config.StrictModel):
             raise ValueError("an excite needs a duration (s), an amplitude and a band [low, high] (Hz)")
         if self.speed is not None or self.heading is not None:
             raise ValueError("an excite holds the pose: no speed or heading")
-        if not self.amplitude > 0:
+        if self.excite in TRANSLATIONS and isinstance(self.amplitude, str):
+            raise ValueError(f"an excite on {self.excite} takes its amplitude in m, a number")
+        if not _amplitude(self.excite, self.amplitude) > 0:
             raise ValueError("an excite's amplitude must be positive")
         low, high = self.band
         if not low < high:
@@ -250,6 +253,11 @@ class Mission:
         return min(max(t / self.duration, 0.0), 1.0)
 
 
+def _amplitude(axis: str, value: float | str) -> float:
+    """An excite's amplitude in SI units: m for a translation, radians (from a number or 'N deg') for a rotation."""
+    return float(value) if axis in TRANSLATIONS else parse_angle(value)
+
+
 def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> list[Segment]:
     pose = np.array([*spec.start.position, spec.start.heading], dtype=float)
     t = 0.0
@@ -267,8 +275,8 @@ def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> lis
             ramp = min(spec.ramp_time, length / entry.speed)
             seg = Segment(t, length / entry.speed + ramp, pose, target, ramp, ramp, False)
         elif entry.excite is not None:
-            signal = excitation(entry.excite, entry.signal, entry.amplitude, tuple(entry.band), entry.duration,
-                                float(pose[3]))
+            signal = excitation(entry.excite, entry.signal, _amplitude(entry.excite, entry.amplitude),
+                                tuple(entry.band), entry.duration, float(pose[3]))
             seg = Segment(t, entry.duration, pose, pose.copy(), 0.5 * entry.duration, 0.5 * entry.duration, False,
                           signal)
         elif entry.hold is not None:

@@ -162,7 +162,7 @@ class Vehicle:
             "water_density": float(self.water_density),
             "gravity": float(self.gravity),
             "inertia": floats(np.diag(i)),
-            "inertia_products": [float(-i[0, 1]), float(-i[1, 2]), float(-i[0, 2])],
+            "inertia_products": [float(-i[0, 1]) + 0.0, float(-i[1, 2]) + 0.0, float(-i[0, 2]) + 0.0],
             "center_of_gravity": floats(self.center_of_gravity),
             "center_of_buoyancy": floats(self.center_of_buoyancy),
             "added_mass": floats(self.added_mass),
@@ -213,5 +213,8 @@ def save_vehicle(vehicle: Vehicle, path: str | Path, header: str = "") -> None:
     comments = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines())
     text = comments + yaml.safe_dump(vehicle.document(), sort_keys=False, default_flow_style=None, width=120)
     partial = path.with_name(path.name + ".partial")
-    partial.write_text(text)
+    try:
+        partial.write_text(text)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     partial.replace(path)          # whole or not at all
