@@ -11,13 +11,18 @@ MAX_ITERATIONS = 50
 STRUCTURAL = 1e-6             # singular value ratio of the column-scaled regressors below which a direction is blind
 
 
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with a x = b, or its least-squares minimum-norm answer where a is singular (a column the data leave at 0)."""
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
 def gauss_newton(function, jacobian, theta: np.ndarray, index: np.ndarray) -> np.ndarray:
     """theta with function(theta) = 0 over theta[index] (as many equations as unknowns; jacobian: theta ->
     (len(index), len(index))), by Newton steps halved while they do not reduce |function|; unbounded."""
     theta = theta.copy()
     f = function(theta)
     for _ in range(MAX_ITERATIONS):
-        step = np.linalg.solve(jacobian(theta), -f)
+        step = _solve(jacobian(theta), -f)
         for _ in range(20):
             trial = theta.copy()
             trial[index] += step
@@ -50,7 +55,7 @@ def levenberg_marquardt(function, jacobian, theta: np.ndarray, index: np.ndarray
         h = normal[np.ix_(movable, movable)]
         while True:
             step = np.zeros(index.size)
-            step[movable] = np.linalg.solve(h + damping * np.diag(np.diag(h) + 1e-30), -gradient[movable])
+            step[movable] = _solve(h + damping * np.diag(np.diag(h)), -gradient[movable])
             trial = theta.copy()
             trial[index] = np.maximum(theta[index] + step, lower[index])
             f_trial = function(trial)
@@ -70,7 +75,7 @@ def levenberg_marquardt(function, jacobian, theta: np.ndarray, index: np.ndarray
 
 def sandwich(jac: np.ndarray, z: np.ndarray) -> np.ndarray:
     """(Z^T J)^-1 Z^T Z (J^T Z)^-1: the instrumental-variables covariance per unit residual variance."""
-    inverse = np.linalg.inv(np.einsum("ij,ik->jk", z, jac))
+    inverse = np.linalg.pinv(np.einsum("ij,ik->jk", z, jac))
     return inverse @ np.einsum("ij,ik->jk", z, z) @ inverse.T
 
 
