@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.commands.common import positive_float
+from rov_mav.commands.arguments import number, output_file
 
 DESCRIPTION = """\
 Fit the vehicle model the controller uses to one or more run logs (`rov-mav run --log DIR`), ideally of
@@ -37,47 +37,59 @@ examples:
 exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
 """
 
+MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's thrusters could hold down or up
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="fit the vehicle model to run logs and write a vehicle file",
                        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("logs", nargs="+", metavar="LOG_DIR", help="run log directories (`rov-mav run --log DIR`)")
-    p.add_argument("--out", required=True, metavar="FILE", help="vehicle file to write")
+    p.add_argument("--out", required=True, type=output_file, metavar="FILE", help="vehicle file to write")
     p.add_argument("--vehicle", metavar="FILE",
                    help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
                         "shipped BlueROV2 Heavy)")
-    p.add_argument("--net-buoyancy", type=_finite, metavar="N",
+    p.add_argument("--net-buoyancy", type=number(-MAX_NET_BUOYANCY, MAX_NET_BUOYANCY), metavar="N",
                    help="buoyancy minus weight in N, measured (positive: it floats); fixes the level of all forces "
                         "so that the thrust scale can be fitted")
-    p.add_argument("--window", type=positive_float, default=None, metavar="S",
+    p.add_argument("--window", type=number(0.05, 5.0), default=None, metavar="S",
                    help="length of the integration windows in s (default 0.4)")
     p.set_defaults(func=main)
 
 
-def _finite(text: str) -> float:
-    """Parse a finite number (argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text}: expected a number")
-    return value
-
-
 def load_run(directory: str):
-    """A run log as an identification `Run` (LogError, one line, if it is not a flight's log)."""
-    from rov_mav.flight.runlog import BODY, DOF, read_ticks
+    """A run's log folder as an identification `Run`: ConfigError (one line) if it is not the log of a flight."""
+    from rov_mav.config import ConfigError
+    from rov_mav.flight.runlog import BODY, DOF
     from rov_mav.offline.identification import Run
+    from rov_mav.review.logdir import TICKS, read_run_folder
 
+    path = Path(directory)
+    if not path.is_dir():
+        raise ConfigError(f"{path}: not a directory (a run log is the DIR of `rov-mav run --log DIR`)")
+    folder = read_run_folder(path)
+    for warning in folder.warnings:
+        print(f"rov-mav identify: warning: {warning}", file=sys.stderr)
+    if folder.info.get("dry_run") or any(text.startswith("dry run:") for _, _, text in folder.events):
+        raise ConfigError(f"{path}: the log of a dry run: no command reached the thrusters")
     reference = [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF] + [f"{d}_ddot_d" for d in DOF]
     pwm, thrust = [f"pwm_{i}" for i in range(1, 9)], [f"thrust_{i}" for i in range(1, 9)]
-    data = read_ticks(directory, ("t", *DOF, *BODY, *reference, *pwm, *thrust, "battery_voltage", "telemetry_age"))
+    needed = ("t", *DOF, *BODY, *reference, *pwm, *thrust, "battery_voltage", "telemetry_age")
+    ticks = folder.ticks
+    missing = [c for c in needed if c not in ticks]
+    if missing:
+        raise ConfigError(f"{path / TICKS}: no column {missing[0]} (not a run log, or none at all)")
+    for c in needed:
+        if not np.all(np.isfinite(ticks[c])):
+            raise ConfigError(f"{path / TICKS}: column {c} holds a value that is not a finite number")
+    if np.any(np.diff(ticks["t"]) < 0):
+        line = int(np.argmax(np.diff(ticks["t"]) < 0)) + 3
+        raise ConfigError(f"{path / TICKS}: line {line}: time goes back")
 
     def stack(columns):
-        return np.stack([data[c] for c in columns], axis=1)
+        return np.stack([ticks[c] for c in columns], axis=1)
 
-    return Run(directory, data["t"], stack(DOF), stack(BODY), stack(pwm), stack(thrust), data["battery_voltage"],
-               stack(reference), data["telemetry_age"])
+    return Run(directory, ticks["t"], stack(DOF), stack(BODY), stack(pwm), stack(thrust), ticks["battery_voltage"],
+               stack(reference), ticks["telemetry_age"])
 
 
 def _report(result, logs: list[str], out: str, window: float) -> str:
@@ -101,19 +113,16 @@ def _report(result, logs: list[str], out: str, window: float) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from rov_mav.flight.runlog import LogError
+    from rov_mav.config import ConfigError
     from rov_mav.model.vehicle import load_vehicle, save_vehicle
     from rov_mav.offline.identification import WINDOW, IdentificationError, identify
 
     prior = load_vehicle(args.vehicle)
-    if not Path(args.out).absolute().parent.is_dir():
-        print(f"rov-mav identify: error: {args.out}: its directory does not exist", file=sys.stderr)
-        return 2
     window = args.window or WINDOW
     try:
         runs = [load_run(d) for d in args.logs]
         result = identify(runs, prior, args.net_buoyancy, window)
-    except (LogError, IdentificationError) as exc:
+    except (ConfigError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)
         return 2
     fitted = sum(e.status == "fitted" for e in result.estimates)

@@ -7,7 +7,6 @@ Every run also says on the link when its mission starts, in vehicle time (`missi
 ArduSub writes to its own log as "GCS:..."), so that any telemetry log of the dive can be aligned with the mission.
 
 The loop only queues; a writer thread formats and writes, so logging never blocks a control tick.
-`read_ticks` reads a log back (for `rov-mav identify`), with one-line errors naming the file and line.
 """
 
 from __future__ import annotations
@@ -21,8 +20,6 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
 from rov_mav.flight.tick import TickRecord
 
 DOF = ("x", "y", "z", "phi", "theta", "psi")
@@ -34,7 +31,6 @@ COLUMNS = (["t", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] 
            + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage"])
 RUN_INFO = "run.json"
 _STOP = object()
-DRY_RUN_EVENT = "dry run:"   # how the runner's events of a dry run start
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
 
 
@@ -47,10 +43,6 @@ def parse_mission_start(text: str) -> float | None:
     """t0 from a `mission_start_text` (as ArduSub logs it, with a prefix, too), else None."""
     found = _MISSION_START.search(text)
     return float(found.group(1)) if found else None
-
-
-class LogError(ValueError):
-    """A run log is missing, unreadable or not a log of a flight; the message is one line naming the file."""
 
 
 def tick_row(r: TickRecord) -> list[str]:
@@ -102,42 +94,3 @@ class RunLog:
                 else:
                     wall, packet = payload
                     tlog.write(struct.pack(">Q", int(wall * 1e6) & ~3) + bytes(packet))
-
-
-def read_ticks(directory: str | Path, columns: tuple[str, ...] = tuple(COLUMNS)) -> dict[str, np.ndarray]:
-    """`columns` of DIR/ticks.csv as float arrays (N,), after checking that DIR holds the log of a flight (not a
-    dry run: its events say so), every value is a finite number and the time never goes back (two ticks may share a
-    state's time); LogError otherwise."""
-    directory = Path(directory)
-    ticks, events = directory / "ticks.csv", directory / "events.csv"
-    if not directory.is_dir():
-        raise LogError(f"{directory}: not a directory (a run log is the DIR given to `rov-mav run --log DIR`)")
-    try:
-        with open(ticks, newline="") as f:
-            rows = list(csv.reader(f))
-        with open(events, newline="") as f:
-            texts = [row[2] for row in list(csv.reader(f))[1:] if len(row) == 3]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise LogError(f"{getattr(exc, 'filename', None) or ticks}: cannot read: "
-                       f"{getattr(exc, 'strerror', None) or exc}") from None
-    if any(text.startswith(DRY_RUN_EVENT) for text in texts):
-        raise LogError(f"{directory}: the log of a dry run: no command reached the thrusters")
-    if not rows:
-        raise LogError(f"{ticks}: empty (no header)")
-    header = rows[0]
-    missing = [c for c in columns if c not in header]
-    if missing:
-        raise LogError(f"{ticks}: not a run log: no column {missing[0]}")
-    index = [header.index(c) for c in columns]
-    data = np.empty((len(rows) - 1, len(columns)))
-    for n, row in enumerate(rows[1:]):
-        try:
-            data[n] = [float(row[i]) for i in index]
-        except (ValueError, IndexError):
-            raise LogError(f"{ticks}: line {n + 2}: not {len(header)} numbers") from None
-        if not np.all(np.isfinite(data[n])):
-            raise LogError(f"{ticks}: line {n + 2}: a value is not finite")
-    if "t" in columns and np.any(np.diff(data[:, columns.index("t")]) < 0):
-        line = int(np.argmax(np.diff(data[:, columns.index("t")]) < 0)) + 3
-        raise LogError(f"{ticks}: line {line}: time goes back")
-    return {c: data[:, i] for i, c in enumerate(columns)}
