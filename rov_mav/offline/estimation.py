@@ -12,8 +12,12 @@ STRUCTURAL = 1e-6             # singular value ratio of the column-scaled regres
 
 
 def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x with a x = b, or its least-squares minimum-norm answer where a is singular (a column the data leave at 0)."""
-    return np.linalg.lstsq(a, b, rcond=None)[0]
+    """x with a x = b (LU: exact whatever the columns' scales, which differ by orders of magnitude here), or the
+    least-squares answer where a is exactly singular (a column the data leave at 0)."""
+    try:
+        return np.linalg.solve(a, b)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
 def gauss_newton(function, jacobian, theta: np.ndarray, index: np.ndarray) -> np.ndarray:
