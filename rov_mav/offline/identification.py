@@ -81,12 +81,14 @@ class DofFit:
 
 @dataclass(frozen=True)
 class Identification:
+    """What `identify` found: the vehicle, every parameter with its interval or reason, the fit per DOF."""
+
     vehicle: Vehicle                 # the prior with every fitted value in
     estimates: tuple[Estimate, ...]
     fits: tuple[DofFit, ...]
     delay: float                     # s, command-to-thrust delay found
-    windows: int
-    duration: float                  # s of flight used
+    windows: int                     # integration windows used
+    duration: float                  # s of flight in the logs
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,8 @@ def _parameters(prior: Vehicle) -> list[_Parameter]:
 
 @dataclass
 class _Fit:
+    """One solution over a set of free parameters, with what its intervals and diagnostics need."""
+
     theta: np.ndarray
     residual: np.ndarray        # (W, 6) unweighted
     jacobian: np.ndarray        # (W * 6, free) of the weighted residuals, measured windows
