@@ -20,6 +20,7 @@ SUBCOMMAND_MODULES = (
     "rov_mav.commands.run",
     "rov_mav.commands.sim_bridge",
     "rov_mav.commands.analyze",
+    "rov_mav.commands.identify",
 )
 
 

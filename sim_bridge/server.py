@@ -18,7 +18,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.plant import Plant
-from rov_mav.model.thrusters import load_t200
+from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_vehicle
 from sim_bridge import telemetry
 from sim_bridge.ardusub import ArduSub
@@ -62,7 +62,7 @@ class Bridge:
                       seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
-        self.physics = Physics(self.vehicle, plant, battery, load_t200(), config.step)
+        self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step)
         self.signing = VehicleSigning(config.signing_key, time.time())
         self.missions = MissionProtocol(lambda: config.origin)
         self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.missions,

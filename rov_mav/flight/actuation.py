@@ -1,7 +1,7 @@
 """The runner's actuation: wrench -> 8 thrusts -> 8 PWMs, at the battery voltage, within the thrust cap.
 
-One allocator and one T200 map for the project (`rov_mav.model.thrusters`); this only keeps their limits current: each
-thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also
+One allocator and one T200 map for the project (`rov_mav.model.thrusters`, scaled by the model's `thrust_scale`); this
+only keeps their limits current: each thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also
 held in the PWM domain, at the highest voltage seen: the battery's voltage sags and recovers faster than the
 vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
@@ -14,7 +14,7 @@ import numpy as np
 from rov_mav.model.thrusters import (
     AllocationInfo,
     Allocator,
-    load_t200,
+    thruster_curve,
     thrusts_to_pwms,
 )
 
@@ -30,7 +30,7 @@ class Actuation:
     def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE):
         self.vehicle = vehicle
         self.max_thrust = max_thrust
-        self.t200 = load_t200()
+        self.t200 = thruster_curve(vehicle)
         self.directions = np.ones(len(vehicle.thruster_positions))
         self.voltage = float("nan")
         self.peak_voltage = 0.0

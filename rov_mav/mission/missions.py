@@ -1,8 +1,11 @@
-"""Missions: a YAML path (goto, hold, line segments) turned into a smooth reference eta_d(t), eta_dot_d, eta_ddot_d.
+"""Missions: a YAML path (goto, hold, line, excite segments) turned into a smooth reference eta_d(t), eta_dot_d,
+eta_ddot_d.
 
 Every segment starts and ends with zero velocity and acceleration unless it is a line told not to ramp, so
 eta_d, eta_dot_d and eta_ddot_d are continuous across segment boundaries (stop-and-turn corners). Roll and pitch
-references are zero. Positions are NED metres; headings radians (or strings with 'deg'/'rad').
+references are zero, except during an excite segment on roll or pitch. Positions are NED metres; headings radians
+(or strings with 'deg'/'rad'). An excite segment holds the pose and adds a multisine or chirp on one body axis
+(`rov_mav.mission.excitation`): the closed-loop excitation `rov-mav identify` fits a model to.
 """
 
 from __future__ import annotations
@@ -10,14 +13,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import AfterValidator, Field, model_validator
 
 from rov_mav import config
+from rov_mav.mission.excitation import AXES, SIGNALS, Excitation, excitation
 from rov_mav.model.environment import Environment, EnvironmentSchema
-from rov_mav.units import Angle, wrap_angle
+from rov_mav.units import Angle, parse_angle, wrap_angle
 
 MAX_DURATION = 24 * 3600.0  # s: longer than any dive; long soak runs fit
 MAX_SAMPLES = 1_440_000     # reference samples built at once: 4 h at 100 Hz (an offline run holds every step)
@@ -43,6 +47,8 @@ def _folder_name(name: str) -> str:
 Name = Annotated[str, AfterValidator(_folder_name)]
 
 REFERENCE_COLUMNS = 18   # eta_d (6), eta_dot_d (6), eta_ddot_d (6)
+SEGMENT_KINDS = ("goto", "hold", "line", "excite")
+TRANSLATIONS = ("surge", "sway", "heave")
 
 
 class _StartSchema(config.StrictModel):
@@ -58,25 +64,50 @@ class _SegmentSchema(config.StrictModel):
     duration: Seconds | None = None  # s, of a line
     heading: Angle | None = None    # heading to reach by the end of a goto or hold
     ramp_up: bool = True            # line only: false starts at full velocity (the report's Eq. 3.1)
+    excite: Literal[AXES] | None = None          # body axis to excite around the held pose
+    signal: Literal[SIGNALS] = "multisine"       # excite only
+    amplitude: float | str | None = None   # excite only: peak offset, m (surge, sway, heave) or an angle (the rest)
+    band: Annotated[list[Positive], Field(min_length=2, max_length=2)] | None = None   # excite only: Hz, low, high
 
     @model_validator(mode="after")
     def _one_kind(self) -> "_SegmentSchema":
-        kinds = [k for k in ("goto", "hold", "line") if getattr(self, k) is not None]
+        kinds = [k for k in SEGMENT_KINDS if getattr(self, k) is not None]
         if len(kinds) != 1:
-            raise ValueError("each path entry needs exactly one of goto, hold, line")
+            raise ValueError("each path entry needs exactly one of " + ", ".join(SEGMENT_KINDS))
         kind = kinds[0]
+        if kind == "excite":
+            return self._check_excite()
+        if self.amplitude is not None or self.band is not None:
+            raise ValueError(f"amplitude and band apply to excite, not {kind}")
         if kind == "goto" and self.speed is None:
             raise ValueError("a goto needs a speed (m/s)")
         if kind != "goto" and self.speed is not None:
             raise ValueError(f"speed applies to goto, not {kind}")
         if kind == "line" and self.duration is None:
             raise ValueError("a line needs a duration (s)")
-        if kind != "line" and self.duration is not None:
+        if kind not in ("line", "excite") and self.duration is not None:
             raise ValueError(f"duration applies to line, not {kind} (a hold's value is its duration)")
         if kind == "line" and self.heading is not None:
             raise ValueError("a line keeps the current heading; turn in a hold before it")
         if kind == "line" and math.hypot(*self.line) == 0:
             raise ValueError("a line needs a non-zero velocity")
+        return self
+
+    def _check_excite(self) -> "_SegmentSchema":
+        if self.duration is None or self.amplitude is None or self.band is None:
+            raise ValueError("an excite needs a duration (s), an amplitude and a band [low, high] (Hz)")
+        if self.speed is not None or self.heading is not None:
+            raise ValueError("an excite holds the pose: no speed or heading")
+        if self.excite in TRANSLATIONS and isinstance(self.amplitude, str):
+            raise ValueError(f"an excite on {self.excite} takes its amplitude in m, a number")
+        if not _amplitude(self.excite, self.amplitude) > 0:
+            raise ValueError("an excite's amplitude must be positive")
+        low, high = self.band
+        if not low < high:
+            raise ValueError("an excite's band must be [low, high] with low < high (Hz)")
+        if low * self.duration < 1.0:
+            raise ValueError(f"an excite of {self.duration:g} s is shorter than one period of its lowest "
+                             f"frequency ({low:g} Hz)")
         return self
 
 
@@ -107,6 +138,7 @@ class Segment:
     ramp_in: float        # s, smooth speed ramp at the start (0: starts at full speed)
     ramp_out: float       # s, at the end (0: ends at full speed)
     extrapolate: bool     # keep moving at the final velocity after the end (a last line without ramp-out)
+    excitation: Excitation | None = None   # an offset added over the segment (excite)
 
     def progress(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """sigma(tau), its first and second derivatives, sigma from 0 to 1 (tau in s since t0).
@@ -199,6 +231,9 @@ class Mission:
             out[np.ix_(mask, cols)] = seg.p0 + sigma[:, None] * delta
             out[np.ix_(mask, [c + 6 for c in cols])] = dsigma[:, None] * delta
             out[np.ix_(mask, [c + 12 for c in cols])] = ddsigma[:, None] * delta
+            if seg.excitation is not None:
+                pose, velocity, acceleration = seg.excitation.offset(tau)
+                out[mask] += np.hstack([pose, velocity, acceleration])
         return out.reshape(t.shape + (REFERENCE_COLUMNS,))
 
     def sampled_reference(self, dt: float, duration: float | None = None) -> np.ndarray:
@@ -218,6 +253,11 @@ class Mission:
         return min(max(t / self.duration, 0.0), 1.0)
 
 
+def _amplitude(axis: str, value: float | str) -> float:
+    """An excite's amplitude in SI units: m for a translation, radians (from a number or 'N deg') for a rotation."""
+    return float(value) if axis in TRANSLATIONS else parse_angle(value)
+
+
 def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> list[Segment]:
     pose = np.array([*spec.start.position, spec.start.heading], dtype=float)
     t = 0.0
@@ -234,6 +274,11 @@ def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> lis
                 raise config.ConfigError(f"{where}.goto: zero-length segment (same point as the previous one)")
             ramp = min(spec.ramp_time, length / entry.speed)
             seg = Segment(t, length / entry.speed + ramp, pose, target, ramp, ramp, False)
+        elif entry.excite is not None:
+            signal = excitation(entry.excite, entry.signal, _amplitude(entry.excite, entry.amplitude),
+                                tuple(entry.band), entry.duration, float(pose[3]))
+            seg = Segment(t, entry.duration, pose, pose.copy(), 0.5 * entry.duration, 0.5 * entry.duration, False,
+                          signal)
         elif entry.hold is not None:
             target = pose.copy()
             if entry.heading is not None:

@@ -159,6 +159,14 @@ class T200:
         """(low, high) PWM in us: the outermost grid PWMs around 1500 where the thrust is exactly 0."""
         return self._curve(float(voltage)).dead_band
 
+    def scaled(self, forward: float, reverse: float) -> "T200":
+        """The same thruster with every forward thrust multiplied by `forward` and every reverse one by `reverse`
+        (> 0; current unchanged): a vehicle whose thrusters push less (or more) than the bench data."""
+        if not (forward > 0 and reverse > 0):
+            raise ValueError(f"thrust scales must be positive, got {forward:g} and {reverse:g}")
+        scale = np.where(self.pwm_grid > NEUTRAL_PWM, forward, reverse)
+        return T200(self.voltages, self.pwm_grid, self.force_table * scale, self.current_table)
+
     # -- construction ----------------------------------------------------------------------------------------
 
     def _blend(self, table: np.ndarray, voltage: float) -> np.ndarray:
@@ -210,6 +218,17 @@ def load_t200(path: str | Path | None = None) -> T200:
     if path is None:
         path = Path(str(resources.files("rov_mav") / "data" / T200_DATA_FILE))
     return T200.from_csv(path)
+
+
+@functools.cache
+def _scaled_t200(forward: float, reverse: float) -> T200:
+    return load_t200() if forward == reverse == 1.0 else load_t200().scaled(forward, reverse)
+
+
+def thruster_curve(vehicle: Vehicle) -> T200:
+    """The shipped T200 data scaled by the vehicle's `thrust_scale` (forward, reverse): what its thrusters push."""
+    forward, reverse = (float(v) for v in vehicle.thrust_scale)
+    return _scaled_t200(forward, reverse)
 
 
 def pwms_to_thrusts(pwms: np.ndarray, voltage: float, t200: T200 | None = None) -> np.ndarray:
@@ -278,9 +297,9 @@ class Allocator:
         cls, vehicle: Vehicle, voltage: float, t200: T200 | None = None, weights: np.ndarray | None = None,
         max_thrust: float | None = None,
     ) -> "Allocator":
-        """Allocator for `vehicle`'s thrusters, limited to the T200's thrust range at `voltage` V, and to
-        `max_thrust` N either way when given."""
-        t200 = t200 or load_t200()
+        """Allocator for `vehicle`'s thrusters, limited to their thrust range at `voltage` V (`t200`, default the
+        vehicle's `thruster_curve`), and to `max_thrust` N either way when given."""
+        t200 = t200 or thruster_curve(vehicle)
         n = len(vehicle.thruster_positions)
         cap = np.inf if max_thrust is None else max_thrust
         return cls(

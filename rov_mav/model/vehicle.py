@@ -1,14 +1,16 @@
-"""Vehicle parameters: the YAML file, its validation, and the mass, added-mass and restoring quantities."""
+"""Vehicle parameters: the YAML file (read and written), its validation, and the mass, added-mass and restoring
+quantities."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
+import yaml
 from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
@@ -28,6 +30,7 @@ class _ThrusterSchema(config.StrictModel):
     positions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     time_constant: Annotated[float, Field(ge=0, le=10.0)]
+    thrust_scale: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
 
     @field_validator("directions")
     @classmethod
@@ -87,6 +90,7 @@ class Vehicle:
     thruster_positions: np.ndarray    # (8, 3)
     thruster_directions: np.ndarray   # (8, 3)
     thruster_time_constant: float
+    thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the T200 data
 
     @property
     def weight(self) -> float:
@@ -133,23 +137,45 @@ class Vehicle:
         """The same vehicle with mass, inertia, added mass and damping multiplied by `factor` (model-error studies).
 
         Volume scales too, so the buoyancy balance is kept."""
-        return Vehicle(
+        return replace(
+            self,
             name=f"{self.name} x{factor:g}",
             mass=self.mass * factor,
             volume=self.volume * factor,
-            water_density=self.water_density,
-            gravity=self.gravity,
             inertia_tensor=self.inertia_tensor * factor,
-            center_of_gravity=self.center_of_gravity,
-            center_of_buoyancy=self.center_of_buoyancy,
             added_mass=self.added_mass * factor,
             linear_damping=self.linear_damping * factor,
             quadratic_damping=self.quadratic_damping * factor,
-            size=self.size,
-            thruster_positions=self.thruster_positions,
-            thruster_directions=self.thruster_directions,
-            thruster_time_constant=self.thruster_time_constant,
         )
+
+    def document(self) -> dict:
+        """The vehicle as the mapping a vehicle file holds (`load_vehicle` reads it back to an equal Vehicle)."""
+        i = self.inertia_tensor
+
+        def floats(a) -> list:
+            return np.asarray(a, dtype=float).tolist()
+
+        return {
+            "name": self.name,
+            "mass": float(self.mass),
+            "volume": float(self.volume),
+            "water_density": float(self.water_density),
+            "gravity": float(self.gravity),
+            "inertia": floats(np.diag(i)),
+            "inertia_products": [float(-i[0, 1]) + 0.0, float(-i[1, 2]) + 0.0, float(-i[0, 2]) + 0.0],
+            "center_of_gravity": floats(self.center_of_gravity),
+            "center_of_buoyancy": floats(self.center_of_buoyancy),
+            "added_mass": floats(self.added_mass),
+            "linear_damping": floats(self.linear_damping),
+            "quadratic_damping": floats(self.quadratic_damping),
+            "size": floats(self.size),
+            "thrusters": {
+                "positions": floats(self.thruster_positions),
+                "directions": floats(self.thruster_directions),
+                "time_constant": float(self.thruster_time_constant),
+                "thrust_scale": floats(self.thrust_scale),
+            },
+        }
 
 
 def default_vehicle_path() -> Path:
@@ -177,4 +203,18 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
         thruster_positions=np.array(s.thrusters.positions, dtype=float),
         thruster_directions=np.array(s.thrusters.directions, dtype=float),
         thruster_time_constant=s.thrusters.time_constant,
+        thrust_scale=np.array(s.thrusters.thrust_scale, dtype=float),
     )
+
+
+def save_vehicle(vehicle: Vehicle, path: str | Path, header: str = "") -> None:
+    """Write `vehicle` as a vehicle file, `header` as leading comment lines; `load_vehicle` reads it back."""
+    path = Path(path)
+    comments = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines())
+    text = comments + yaml.safe_dump(vehicle.document(), sort_keys=False, default_flow_style=None, width=120)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        partial.write_text(text)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
+    partial.replace(path)          # whole or not at all

@@ -1,0 +1,134 @@
+"""`rov-mav identify`: fit the vehicle model to run logs and write it as a vehicle file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from rov_mav.commands.arguments import number, output_file
+
+DESCRIPTION = """\
+Fit the vehicle model the controller uses to one or more run logs (`rov-mav run --log DIR`), ideally of
+missions/identify.yaml flown on the vehicle to identify, and write it as a vehicle file that --vehicle accepts.
+
+Fitted, as far as the logs can tell them apart: added mass, linear and quadratic damping (per DOF), buoyancy and
+its lever r_b - r_g, the thrusters' force per PWM (a scale on the T200 data, forward and reverse) and their moment
+arms (roll, pitch, yaw), plus the delay from command to thrust. Mass, inertia and the centre of gravity come from
+the prior (--vehicle), which also stands wherever the data cannot see: each parameter is printed with its 95 %
+confidence interval, or with the reason it kept the prior, and each DOF with how much of its force the model
+explains (R^2) and the residual left (RMS).
+
+One number cannot come from motion: scaling every force of the model and the thrust together changes nothing the
+vehicle does. The thrusters' bench data set that level unless --net-buoyancy gives the vehicle's weight in water
+(weigh it hanging from a spring scale, fully submerged): then the thrust scale is fitted too.
+"""
+
+EPILOG = """\
+examples:
+  rov-mav run --target tcp:127.0.0.1:5760 missions/identify.yaml --log out/identify
+  rov-mav identify out/identify --out my_rov.yaml
+  rov-mav identify out/identify out/identify2 --net-buoyancy 2.5 --out my_rov.yaml
+  rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml --vehicle my_rov.yaml
+
+exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
+"""
+
+MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's thrusters could hold down or up
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("identify", help="fit the vehicle model to run logs and write a vehicle file",
+                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("logs", nargs="+", metavar="LOG_DIR", help="run log directories (`rov-mav run --log DIR`)")
+    p.add_argument("--out", required=True, type=output_file, metavar="FILE", help="vehicle file to write")
+    p.add_argument("--vehicle", metavar="FILE",
+                   help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
+                        "shipped BlueROV2 Heavy)")
+    p.add_argument("--net-buoyancy", type=number(-MAX_NET_BUOYANCY, MAX_NET_BUOYANCY), metavar="N",
+                   help="buoyancy minus weight in N, measured (positive: it floats); fixes the level of all forces "
+                        "so that the thrust scale can be fitted")
+    p.add_argument("--window", type=number(0.05, 5.0), default=None, metavar="S",
+                   help="length of the integration windows in s (default 0.4)")
+    p.set_defaults(func=main)
+
+
+def load_run(directory: str):
+    """A run's log folder as an identification `Run`: ConfigError (one line) if it is not the log of a flight."""
+    from rov_mav.config import ConfigError
+    from rov_mav.flight.runlog import BODY, DOF
+    from rov_mav.offline.identification import Run
+    from rov_mav.review.logdir import TICKS, read_run_folder
+
+    path = Path(directory)
+    if not path.is_dir():
+        raise ConfigError(f"{path}: not a directory (a run log is the DIR of `rov-mav run --log DIR`)")
+    folder = read_run_folder(path)
+    for warning in folder.warnings:
+        print(f"rov-mav identify: warning: {warning}", file=sys.stderr)
+    if folder.info.get("dry_run") or any(text.startswith("dry run:") for _, _, text in folder.events):
+        raise ConfigError(f"{path}: the log of a dry run: no command reached the thrusters")
+    reference = [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF] + [f"{d}_ddot_d" for d in DOF]
+    pwm, thrust = [f"pwm_{i}" for i in range(1, 9)], [f"thrust_{i}" for i in range(1, 9)]
+    needed = ("t", *DOF, *BODY, *reference, *pwm, *thrust, "battery_voltage", "telemetry_age")
+    ticks = folder.ticks
+    missing = [c for c in needed if c not in ticks]
+    if missing:
+        raise ConfigError(f"{path / TICKS}: no column {missing[0]} (not a run log, or none at all)")
+    for c in needed:
+        if not np.all(np.isfinite(ticks[c])):
+            raise ConfigError(f"{path / TICKS}: column {c} holds a value that is not a finite number")
+    if np.any(np.diff(ticks["t"]) < 0):
+        line = int(np.argmax(np.diff(ticks["t"]) < 0)) + 3
+        raise ConfigError(f"{path / TICKS}: line {line}: time goes back")
+
+    def stack(columns):
+        return np.stack([ticks[c] for c in columns], axis=1)
+
+    return Run(directory, ticks["t"], stack(DOF), stack(BODY), stack(pwm), stack(thrust), ticks["battery_voltage"],
+               stack(reference), ticks["telemetry_age"])
+
+
+def _report(result, logs: list[str], out: str, window: float) -> str:
+    """The table of parameters, the fit per DOF, what was kept, where the file went."""
+    n = len(logs)
+    lines = [f"identify: {n} log{'s' if n > 1 else ''}, {result.duration:.1f} s of flight in {result.windows} windows "
+             f"of {window:g} s, command-to-thrust delay {result.delay * 1e3:.1f} ms",
+             f"  {'parameter':<26} {'value':>12} {'95 % CI':>11} {'prior':>10}  {'unit':<14} status"]
+    for e in result.estimates:
+        ci = f"+/-{e.half_width:.3g}" if np.isfinite(e.half_width) else ""
+        lines.append(f"  {e.name:<26} {e.value:>12.5g} {ci:>11} {e.prior:>10.5g}  {e.unit:<14} {e.status}")
+    vehicle = result.vehicle
+    lines.append(f"  net buoyancy {vehicle.buoyancy - vehicle.weight:+.2f} N (B - W); centre of buoyancy "
+                 f"{np.round(vehicle.center_of_buoyancy * 1e3, 1).tolist()} mm")
+    lines.append("fit per DOF (R^2: the share of its force the model explains; residual: the RMS left, per window):")
+    lines += [f"  {f.dof:<6} R^2 {f.r2:.4f}  residual RMS {f.rms:.3g} {f.unit}" for f in result.fits]
+    kept = [e.name for e in result.estimates if e.status.startswith("prior")]
+    lines.append(f"kept at the prior (not identifiable from these logs): {', '.join(kept) or 'nothing'}")
+    lines.append(f"wrote {out} (fly with it: rov-mav run --vehicle {out} MISSION)")
+    return "\n".join(lines)
+
+
+def main(args: argparse.Namespace) -> int:
+    from rov_mav.config import ConfigError
+    from rov_mav.model.vehicle import load_vehicle, save_vehicle
+    from rov_mav.offline.identification import WINDOW, IdentificationError, identify
+
+    prior = load_vehicle(args.vehicle)
+    window = args.window or WINDOW
+    try:
+        runs = [load_run(d) for d in args.logs]
+        result = identify(runs, prior, args.net_buoyancy, window)
+    except (ConfigError, IdentificationError) as exc:
+        print(f"rov-mav identify: error: {exc}", file=sys.stderr)
+        return 2
+    fitted = sum(e.status == "fitted" for e in result.estimates)
+    header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
+              f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
+              + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
+    save_vehicle(replace(result.vehicle, name=f"{prior.name}, identified"), args.out, header)
+    print(_report(result, args.logs, args.out, window), flush=True)
+    return 0
