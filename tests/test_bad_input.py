@@ -234,6 +234,29 @@ def test_wrong_values_in_other_files(workdir, capsys, option, content, reason):
     assert files_under(workdir) == set()
 
 
+@pytest.mark.parametrize("controller, content, reason", [
+    ("pid", {"k1": [1.0] * 6}, "k1: unknown key"),           # another family's gains file
+    ("fuzzy", {"kp_vel": [1.0] * 6}, "kp_vel: unknown key"),
+    ("pid", {"kp_vel": [0.0] * 6}, "kp_vel[0]: Input should be greater than 0"),
+    ("pid", {"ki_vel": [-1.0] * 6}, "ki_vel[0]: Input should be greater than or equal to 0"),
+    ("smc", {"phi": [0.1] * 5}, "phi: List should have at least 6 items"),
+    ("ismc", {"k": [float("inf")] * 6}, "k[0]: Input should be a finite number"),
+])
+def test_wrong_gains_for_the_chosen_controller(workdir, capsys, controller, content, reason):
+    bad = write_yaml(workdir.parent / "inputs" / "g.yaml", content)
+    status, err = rov_mav(["simulate", SQUARE, "--controller", controller, "--gains", str(bad)], capsys)
+    assert status == 2
+    assert_one_line(err, f"rov-mav simulate: error: {bad}: {reason}")
+    assert files_under(workdir) == set()
+
+
+def test_k1_with_a_controller_that_has_none(workdir, capsys):
+    status, err = rov_mav(["simulate", SQUARE, "--controller", "smc", "--k1", "1,1,1,1,1,1"], capsys)
+    assert status == 2
+    assert_one_line(err, "rov-mav simulate: error: --k1: a gain of the backstepping law")
+    assert files_under(workdir) == set()
+
+
 BAD_NUMBERS = [   # argv -> the option the line must name
     (["run", SQUARE, "--sysid", "999"], "--sysid", "expected an integer from 1 to 255"),
     (["run", SQUARE, "--sysid", "0"], "--sysid", "expected an integer from 1 to 255"),

@@ -63,7 +63,8 @@ def test_batch_runs_equal_single_runs(vehicle, line):
     """One batched call over several gain sets gives exactly the costs of separate calls."""
     settings = load_settings("fuzzy")
     ref = line.sampled_reference(0.01, 10.0)
-    gains = np.stack([settings.gains, settings.gains * 0.5, settings.gains * 2.0])
+    gains = np.stack([settings.vector, settings.with_gains(settings.gains * 0.5).vector,
+                      settings.with_gains(settings.gains * 2.0).vector])
     x0 = np.concatenate([line.start_pose, np.zeros(6)])
     empty = [np.zeros((3, 0, 6)) for _ in range(6)]
 
@@ -92,7 +93,7 @@ def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
     cost, steps = np.zeros(1), np.zeros(1, dtype=np.int64)
     empty = np.zeros((1, 0, 6))
     loop_kernel.simulate_batch(vehicle.packed()[None], line.environment.packed()[None], vehicle.packed(),
-                          settings.gains[None], *settings.kernel_arguments(), ref, 0.05, 1,
+                          settings.vector[None], *settings.kernel_arguments(), ref, 0.05, 1,
                           np.concatenate([line.start_pose, np.zeros(6)]), np.zeros(1, dtype=np.int64),
                           *loop_kernel.printed_cost(ref), *[empty] * 6, cost, steps)
     assert cost[0] == loop_kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1

@@ -12,8 +12,8 @@ from conftest import MISSIONS
 from rerun.chunk import RrdReader
 
 from rov_mav import cli, config
-from rov_mav.control import law_kernel
-from rov_mav.control.controller import load_settings
+from rov_mav.control import backstepping
+from rov_mav.control.controller import BACKSTEPPING, load_settings
 from rov_mav.mission.missions import load_mission
 from rov_mav.model import kernel
 from rov_mav.offline import loop_kernel, pso, tuning
@@ -60,7 +60,7 @@ def test_feedforward_is_what_the_compiled_law_commands_on_the_reference(vehicle,
         R = np.array(kernel.rotation(1.0, 0.0, 1.0, 0.0, np.cos(ref[k, 5]), np.sin(ref[k, 5]))).reshape(3, 3)
         nu = np.concatenate([R.T @ ref[k, 6:9], ref[k, 9:12]])        # roll = pitch = 0 on the line
         tau, s, grad = np.zeros(6), np.zeros(6), np.zeros(6)
-        law_kernel.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, ref[k, :6].copy(), nu, ref[k], np.zeros(6),
+        backstepping.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, ref[k, :6].copy(), nu, ref[k], np.zeros(6),
                            tau, s, grad)
         np.testing.assert_allclose(s, 0.0, atol=1e-12)
         np.testing.assert_allclose(tau, tau_ff[k], rtol=1e-9, atol=1e-9)
@@ -153,9 +153,9 @@ def test_bounds_file(tmp_path):
     path.write_text("lower: {k1: [1, 1, 1, 1, 1, 1], k2: [0.5, 0.5, 0.5, 0.5, 0.5, 0.5]}\n"
                     "upper: {k1: [5, 5, 5, 5, 5, 5], k2: [9, 9, 9, 9, 9, 0.5]}\n")
     with pytest.raises(config.ConfigError, match=r"upper.k2\[5\]: not above the lower bound"):
-        tuning.load_bounds(path)
+        tuning.load_bounds(path, BACKSTEPPING)
     path.write_text(path.read_text().replace("9, 0.5]", "9, 2]"))
-    lower, upper = tuning.load_bounds(path)
+    lower, upper = tuning.load_bounds(path, BACKSTEPPING)
     assert lower.tolist() == [1.0] * 6 + [0.5] * 6 and upper.tolist() == [5.0] * 6 + [9.0] * 5 + [2.0]
 
 

@@ -27,7 +27,7 @@ def batch_runner(n: int, duration: float = 60.0, dt: float = 0.01):
     args = settings.kernel_arguments()
     ref = mission.sampled_reference(dt, duration)
     rng = np.random.default_rng(0)
-    gains = settings.gains * rng.uniform(0.8, 1.2, (n, 12))
+    gains = np.stack([settings.with_gains(g).vector for g in settings.gains * rng.uniform(0.8, 1.2, (n, 12))])
     plant = np.tile(vehicle.packed(), (n, 1))
     env = np.tile(mission.environment.packed(), (n, 1))
     x0 = np.concatenate([mission.start_pose, np.zeros(6)])

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rov_mav.commands.arguments import lat_lon, plan_speed, require_writable, six_floats, unwritable
-from rov_mav.control.controller import SCHEDULES, ControllerSettings, load_settings
+from rov_mav.control.controller import KINDS, ControllerSettings, load_settings
 
 if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
     import numpy as np
@@ -62,12 +62,14 @@ def report_skipped(mission: Mission) -> None:
 
 def add_controller_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("controller")
-    group.add_argument("--controller", choices=list(SCHEDULES), default="fuzzy",
-                       help="disturbance adaptation: fuzzy rates (Appendix III), constant rates, or none "
-                            "(baseline backstepping); default: fuzzy")
+    group.add_argument("--controller", choices=list(KINDS), default="fuzzy",
+                       help="the report's backstepping law with fuzzy adaptation rates (Appendix III), constant "
+                            "rates, or none (baseline); or pid (ArduSub-style cascade), smc (sliding mode per DOF), "
+                            "ismc (integral sliding mode with the model's feed-forward); default: fuzzy")
     group.add_argument("--gains", metavar="FILE",
-                       help="YAML with any of k1, k2, constant_gamma, d_max (e.g. the output of `rov-mav tune`); "
-                            "default: Eqs. 4.1-4.2")
+                       help="YAML with any of the controller's keys (e.g. the output of `rov-mav tune`): k1, k2, "
+                            "constant_gamma, d_max for the report's law (default: Eqs. 4.1-4.2); pid, smc, ismc: see "
+                            "their files in rov_mav/data")
     group.add_argument("--k1", type=six_floats, metavar="A,B,C,D,E,F", help="k1 diagonal, overrides --gains")
     group.add_argument("--k2", type=six_floats, metavar="A,B,C,D,E,F", help="k2 diagonal, overrides --gains")
     group.add_argument("--fuzzy-rules", metavar="FILE", help="fuzzy rule base YAML (default: Appendix III)")

@@ -1,5 +1,5 @@
-"""`rov-mav tune`: PSO tuning of the 12 gains k1, k2 (Sec. II.v, Eqs. 2.30-2.33) on a mission, optionally robust
-over scenarios, in process or on a Dask cluster."""
+"""`rov-mav tune`: PSO tuning of a controller's gains (the report's 12 gains k1, k2: Sec. II.v, Eqs. 2.30-2.33; the
+tuned groups of pid, smc, ismc) on a mission, optionally robust over scenarios, in process or on a Dask cluster."""
 
 from __future__ import annotations
 
@@ -41,7 +41,6 @@ from rov_mav.offline import loop_kernel, pso, tuning
 from rov_mav.offline.scenarios import load_scenarios, nominal
 from rov_mav.offline.simulation import Trace, simulate
 
-DEFAULT_BOUNDS = (0.1, 10.0)   # ERRATA: the report's optimum spans 0.8-10
 MAX_PARTICLES = 10_000         # the swarm's arrays and each iteration's batch of runs stay in memory
 MAX_ITERATIONS = 100_000
 MAX_THREADS = 256
@@ -55,15 +54,16 @@ def bounds_pair(text: str) -> tuple[float, float]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text}: not LO,HI") from None
     if not 0 < lo < hi < math.inf:
-        raise argparse.ArgumentTypeError(f"{text}: need 0 < LO < HI, both finite (Eq. 2.33: k1, k2 > 0)")
+        raise argparse.ArgumentTypeError(f"{text}: need 0 < LO < HI, both finite (Eq. 2.33: gains > 0)")
     return lo, hi
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     defaults = pso.PSOOptions()
     p = sub.add_parser(
-        "tune", help="tune the gains k1, k2 by particle swarm optimization on a mission (Sec. II.v)",
-        description="Particle swarm optimization of the 12 gains (Eqs. 2.30-2.33): each iteration simulates the "
+        "tune", help="tune a controller's gains by particle swarm optimization on a mission (Sec. II.v)",
+        description="Particle swarm optimization of the controller's gains (the report's law: k1, k2, Eqs. "
+                    "2.30-2.33; pid, smc, ismc: the groups their gains files list first): each iteration simulates the "
                     "whole swarm (x scenarios) through the compiled closed loop. Writes a gains YAML that "
                     "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
                     "against the starting gains (default: the report's Eqs. 4.1-4.2) on the mission.")
@@ -85,9 +85,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="max |velocity| per iteration as a fraction of the box width (default "
                         f"{defaults.velocity_clamp})")
     box = g.add_mutually_exclusive_group()
-    box.add_argument("--bounds", type=bounds_pair, default=DEFAULT_BOUNDS, metavar="LO,HI",
-                     help="the same box for all 12 gains (default 0.1,10)")
-    box.add_argument("--bounds-file", metavar="FILE", help="per-gain box: YAML lower: {k1, k2}, upper: {k1, k2}")
+    box.add_argument("--bounds", type=bounds_pair, metavar="LO,HI",
+                     help="the same box for all tuned gains (default: per controller; the report's law 0.1,10)")
+    box.add_argument("--bounds-file", metavar="FILE",
+                     help="per-gain box: YAML lower: {GROUP: [6 values]...}, upper: {...} for each tuned group "
+                          "(the report's law: k1, k2)")
     c = p.add_argument_group("cost")
     c.add_argument("--cost", choices=tuning.COSTS, default="tracking",
                    help="tracking (default): 1 cm / 1 degree of error and a corrective wrench of one axis "
@@ -113,8 +115,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def write_gains(path: Path, settings: ControllerSettings, header: str) -> None:
     """A gains YAML with every key `--gains` takes, so the tuned controller is reproduced exactly."""
-    body = {"k1": settings.k1.tolist(), "k2": settings.k2.tolist(),
-            "constant_gamma": settings.constant_gamma.tolist(), "d_max": settings.d_max.tolist()}
+    body = settings.as_yaml()
     path.parent.mkdir(parents=True, exist_ok=True)
     comments = "".join(f"# {line}\n" for line in header.splitlines())
     path.write_text(comments + yaml.safe_dump(body, sort_keys=False, default_flow_style=None))
@@ -129,9 +130,11 @@ def main(args: argparse.Namespace) -> int:
     check_rerun_output(args, plot_dir / "tune.rrd")
     options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
     if args.bounds_file:
-        lower, upper = tuning.load_bounds(args.bounds_file)
+        lower, upper = tuning.load_bounds(args.bounds_file, start.family)
+    elif args.bounds:
+        lower, upper = np.full(start.family.n_tuned, args.bounds[0]), np.full(start.family.n_tuned, args.bounds[1])
     else:
-        lower, upper = np.full(12, args.bounds[0]), np.full(12, args.bounds[1])
+        lower, upper = start.family.default_bounds()
     scenarios = (load_scenarios(args.scenarios, mission.environment) if args.scenarios
                  else [nominal(mission.environment)])
     problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration)
@@ -143,7 +146,7 @@ def main(args: argparse.Namespace) -> int:
         backend = DaskBackend(args.cluster)
     else:
         backend = tuning.ThreadBackend(args.threads)
-    print(f"tuning {mission.name}: {options.particles} particles x {options.iterations} iterations x "
+    print(f"tuning {start.kind} on {mission.name}: {lower.size} gains, {options.particles} particles x {options.iterations} iterations x "
           f"{len(scenarios)} scenario(s), {problem.ref.shape[0] - 1} ticks each, cost '{args.cost}', "
           f"{args.cluster or f'{args.threads} threads'}")
     t0 = time.perf_counter()
@@ -181,7 +184,7 @@ def main(args: argparse.Namespace) -> int:
     for label, settings in (("start", start), ("tuned", tuned)):
         comparison[label], traces[label] = _on_the_mission(mission, settings, model, problem, args.duration)
     (plot_dir / "comparison.json").write_text(json.dumps(comparison, indent=2) + "\n")
-    _print_summary(comparison, result, elapsed, out, figure)
+    _print_summary(comparison, tuned, result, elapsed, out, figure)
     _log_to_rerun(args, plot_dir / "tune.rrd", result, traces["tuned"], model, mission)
     return 0
 
@@ -206,15 +209,16 @@ def _on_the_mission(mission: Mission, settings: ControllerSettings, model: Vehic
     and that run."""
     trace = simulate(mission, settings, model, duration=duration)
     metrics = trace_metrics(mission.name, settings.kind, trace)
-    return {"k1": settings.k1.tolist(), "k2": settings.k2.tolist(),
-            "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}, trace
+    gains = {name: settings.as_yaml()[name] for name in settings.family.tuned}
+    return {**gains, "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}, trace
 
 
-def _print_summary(comparison: dict, result: pso.PSOResult, elapsed: float, out: Path, figure: Path) -> None:
+def _print_summary(comparison: dict, tuned: ControllerSettings, result: pso.PSOResult, elapsed: float, out: Path,
+                   figure: Path) -> None:
     obj = comparison["objective"]
     print(f"best cost {result.best_cost:.6g} in {elapsed:.1f} s (start gains: {obj['start']:.6g})")
-    print(f"  k1 = {np.round(result.best_position[:6], 3).tolist()}")
-    print(f"  k2 = {np.round(result.best_position[6:], 3).tolist()}")
+    for name in tuned.family.tuned:
+        print(f"  {name} = {np.round(tuned.params[name], 3).tolist()}")
     print(f"  {'on the mission':<32}{'start':>12}{'tuned':>12}")
     rows = (("position error RMS (cm)", "rms_position_error_m", 100), ("  steady (cm)", "rms_position_error_steady_m",
             100), ("  max (cm)", "max_position_error_m", 100), ("attitude error RMS (deg)", "rms_attitude_error_rad",

@@ -322,7 +322,7 @@ class Runner:
         reference = self.mission.reference(0.0)
         eta = reference[:6] + 0.1
         self.controller.step(eta, np.zeros(6), reference, self.period)
-        self.controller.tau_hat[:] = 0.0
+        self.controller.reset()
         self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
         self.actuation.command(np.zeros(6))
         approach(eta, self.mission.start_pose, self.options.approach_speed)

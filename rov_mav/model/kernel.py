@@ -193,3 +193,14 @@ def rk4_step(m, env, x, tau, t, h, ws):
 def wrap_angle(a):
     """Wrap an angle to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@compiled
+def body_from_earth(cphi, sphi, cth, sth, R, a):
+    """J(eta)^-1 a for a (6,) in the eta frame: R^T on the translation, T^-1 on the rotation (Eq. 2.4), 6-tuple."""
+    return (R[0] * a[0] + R[3] * a[1] + R[6] * a[2],
+            R[1] * a[0] + R[4] * a[1] + R[7] * a[2],
+            R[2] * a[0] + R[5] * a[1] + R[8] * a[2],
+            a[3] - sth * a[5],
+            cphi * a[4] + cth * sphi * a[5],
+            -sphi * a[4] + cth * cphi * a[5])

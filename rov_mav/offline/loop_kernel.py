@@ -1,4 +1,4 @@
-"""The compiled offline closed loop (Numba, cached): a batch of vehicles, each flown by the law through the plant,
+"""The compiled offline closed loop (Numba, cached): a batch of vehicles, each flown by a controller through the plant,
 with the tuning cost (Eq. 2.32 and its tracking form) and the divergence and saturation cut-offs.
 """
 
@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from rov_mav.control.law_kernel import controller_step
+from rov_mav.control.law_kernel import STATE_SIZE, controller_step
 from rov_mav.model.kernel import E_NOISE, FAST, compiled, rk4_step, wrap_angle
 
 # Limits beyond which a simulated vehicle counts as diverged (Assumption 1 and sanity bounds).
@@ -61,13 +61,13 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
-def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_xmax, d_max, ref, dt,
-                   substeps, x0, seeds, cost_weights, tau_ff, tau_max, eta_log, nu_log, tau_log, tau_hat_log, s_log,
+def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights, tau_ff, tau_max, eta_log, nu_log, tau_log, tau_hat_log, s_log,
                    gamma_log, cost, steps_done):
-    """Closed-loop runs of a batch of vehicles: law + adaptation at 1/dt, plant by RK4 at dt/substeps.
+    """Closed-loop runs of a batch of vehicles: controller at 1/dt, plant by RK4 at dt/substeps.
 
     plant (B, 92), env (B, 20): each run's true vehicle and environment; ctrl (92,): the controller's model;
-    gains (B, 12) = [k1 | k2]; ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
+    params (B, P): each run's controller parameter vector for controller `kind` (`law_kernel.controller_step`,
+    with the fuzzy rate table, table_xmax); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
     Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
@@ -75,7 +75,7 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
     logged (N for a run that completed; a run that ends early stops at the last state before it failed).
     The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
-    n_runs = gains.shape[0]
+    n_runs = params.shape[0]
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[1] > 0
     h = dt / substeps
@@ -85,13 +85,12 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
         ws_plant = np.zeros(80)
         eta_m = np.zeros(6)
         nu_m = np.zeros(6)
+        state = np.zeros(STATE_SIZE)
         tau_hat = np.zeros(6)
         tau = np.zeros(6)
         s = np.zeros(6)
         grad = np.zeros(6)
         gamma = np.zeros(6)
-        k1 = gains[b, 0:6]
-        k2 = gains[b, 6:12]
         noise = env[b, E_NOISE:E_NOISE + 4]
         total = 0.0
         done = n_steps
@@ -101,8 +100,8 @@ def simulate_batch(plant, env, ctrl, gains, schedule, gamma_const, table, table_
                 eta_m[i] = x[i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
                 sigma = noise[2] if i < 3 else noise[3]
                 nu_m[i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
-            controller_step(ctrl, k1, k2, schedule, gamma_const, table, table_xmax, d_max, eta_m, nu_m, ref[k],
-                            dt, tau_hat, tau, s, grad, gamma)
+            controller_step(kind, ctrl, params[b], table, table_xmax, eta_m, nu_m, ref[k], dt, state, tau, tau_hat,
+                            s, grad, gamma)
             if record:
                 for i in range(6):
                     eta_log[b, k, i] = x[i]

@@ -1,4 +1,4 @@
-"""Offline closed-loop simulation: mission reference -> law + adaptation -> plant, no I/O (the compiled kernel)."""
+"""Offline closed-loop simulation: mission reference -> controller -> plant, no I/O (the compiled kernel)."""
 
 from __future__ import annotations
 
@@ -25,9 +25,9 @@ class Trace:
     nu: np.ndarray          # (N, 6) true body velocity
     reference: np.ndarray   # (N, 18) eta_d, eta_dot_d, eta_ddot_d
     tau: np.ndarray         # (N, 6) commanded wrench
-    tau_hat: np.ndarray     # (N, 6) disturbance estimate
-    s: np.ndarray           # (N, 6) sliding variable
-    gamma: np.ndarray       # (N, 6) adaptation rates
+    tau_hat: np.ndarray     # (N, 6) the wrench the law holds against the disturbance (the estimate)
+    s: np.ndarray           # (N, 6) sliding variable (zeros for pid)
+    gamma: np.ndarray       # (N, 6) adaptation rates (constant and fuzzy only)
     true_disturbance: np.ndarray | None   # (6,) when constant
     completed: bool         # ran to the end without diverging
 
@@ -44,7 +44,7 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     cost = np.zeros(1)
     steps = np.zeros(1, dtype=np.int64)
     x0 = np.concatenate([mission.start_pose, np.zeros(6)])
-    loop_kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.gains[None],
+    loop_kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.vector[None],
                           *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
                           *loop_kernel.printed_cost(ref), *logs, cost, steps)
     done = int(steps[0])

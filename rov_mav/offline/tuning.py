@@ -14,11 +14,12 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from pydantic import create_model
 from scipy.optimize import linprog
 
 from rov_mav import config
 from rov_mav.control import law
-from rov_mav.control.controller import ControllerSettings, PositiveVec6
+from rov_mav.control.controller import ControllerSettings, Family, PositiveVec6
 from rov_mav.mission.missions import Mission
 from rov_mav.model import dynamics
 from rov_mav.model.thrusters import allocation_matrix
@@ -37,7 +38,7 @@ CHUNKS_PER_WORKER = 4       # tasks per worker thread and iteration: balances ru
 # The sliding variable is not weighted: s = e_dot + k1 e is scaled by the very gain being tuned.
 TRACKING_ERROR_SCALE = np.array([0.01, 0.01, 0.01, np.radians(1.0), np.radians(1.0), np.radians(1.0)])
 
-Batch = tuple[np.ndarray, np.ndarray]   # gains (n, 12), scenario index (n,)
+Batch = tuple[np.ndarray, np.ndarray]   # gains (n, G), scenario index (n,)
 
 
 class Backend(Protocol):
@@ -89,6 +90,7 @@ class TuningProblem:
     envs: np.ndarray         # (S, 20) each scenario's water
     seeds: np.ndarray        # (S,) sensor-noise seeds
     controller: tuple        # ControllerSettings.kernel_arguments()
+    params: np.ndarray       # (P,) the controller's parameter vector; its first G entries are the tuned gains
     ref: np.ndarray          # (N+1, 18)
     dt: float
     x0: np.ndarray           # (12,)
@@ -107,8 +109,9 @@ class TuningProblem:
         n = gains.shape[0]
         cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
         empty = np.zeros((n, 0, 6))
-        loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, np.ascontiguousarray(gains),
-                              *self.controller, self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights,
+        params = np.tile(self.params, (n, 1))
+        params[:, :gains.shape[1]] = gains
+        loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, params, *self.controller, self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights,
                               self.tau_ff, self.tau_max, empty, empty, empty, empty, empty, empty, cost, steps)
         return cost, steps
 
@@ -121,7 +124,7 @@ class TuningProblem:
         return float(np.sum(trace.s[:n] ** 2 @ q + e**2 @ q_e + u**2 @ r) * self.dt)
 
     def scenario_costs(self, gains: np.ndarray, backend: Backend) -> np.ndarray:
-        """Cost of every gain set (P, 12) in every scenario, (S, P), as about CHUNKS_PER_WORKER batches per
+        """Cost of every gain set (P, G) in every scenario, (S, P), as about CHUNKS_PER_WORKER batches per
         backend worker."""
         p = gains.shape[0]
         all_gains = np.tile(gains, (self.n_scenarios, 1))
@@ -151,6 +154,7 @@ def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle
         envs=np.array([s.environment.packed() for s in scenarios]),
         seeds=np.array([s.seed for s in scenarios], dtype=np.int64),
         controller=settings.kernel_arguments(),
+        params=settings.vector,
         ref=ref,
         dt=dt,
         x0=np.concatenate([mission.start_pose, np.zeros(6)]),
@@ -163,7 +167,8 @@ def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle
 
 def tune(problem: TuningProblem, lower: np.ndarray, upper: np.ndarray, options: pso.PSOOptions, seed: int,
          backend: Backend, callback: Callable[[int, float], None] | None = None) -> pso.PSOResult:
-    """PSO of the 12 gains [k1 | k2] in the box [lower, upper] on `problem` (Eq. 2.33), evaluated on `backend`."""
+    """PSO of the controller's tuned gains (e.g. [k1 | k2]) in the box [lower, upper] on `problem` (Eq. 2.33),
+    evaluated on `backend`."""
     return pso.minimize(lambda gains: problem.costs(gains, backend), lower, upper, options, seed, callback)
 
 
@@ -187,22 +192,18 @@ class ThreadBackend:
         self.close()
 
 
-class _GainVectors(config.StrictModel):
-    k1: PositiveVec6
-    k2: PositiveVec6
-
-
-class _BoundsFile(config.StrictModel):
-    lower: _GainVectors
-    upper: _GainVectors
-
-
-def load_bounds(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Per-gain search box from YAML `lower: {k1, k2}`, `upper: {k1, k2}` (6 positive values each, Eq. 2.33)."""
-    spec = config.load(_BoundsFile, path)
-    lower = np.array(spec.lower.k1 + spec.lower.k2)
-    upper = np.array(spec.upper.k1 + spec.upper.k2)
+def load_bounds(path: str | Path, family: Family) -> tuple[np.ndarray, np.ndarray]:
+    """Per-gain search box from YAML `lower: {GROUP: [6 values]...}`, `upper: {...}` naming each of the family's
+    tuned groups (e.g. k1, k2 for the backstepping law, Eq. 2.33)."""
+    box = create_model(f"_{family.name}_box", __base__=config.StrictModel,
+                       **{g: (PositiveVec6, ...) for g in family.tuned})
+    bounds_file = create_model(f"_{family.name}_bounds", __base__=config.StrictModel, lower=(box, ...),
+                               upper=(box, ...))
+    spec = config.load(bounds_file, path)
+    lower = np.concatenate([getattr(spec.lower, g) for g in family.tuned])
+    upper = np.concatenate([getattr(spec.upper, g) for g in family.tuned])
     if np.any(upper <= lower):
         i = int(np.flatnonzero(upper <= lower)[0])
-        raise config.ConfigError(f"{path}: upper.k{1 + i // 6}[{i % 6}]: not above the lower bound {lower[i]:g}")
+        group = family.tuned[i // 6]
+        raise config.ConfigError(f"{path}: upper.{group}[{i % 6}]: not above the lower bound {lower[i]:g}")
     return lower, upper

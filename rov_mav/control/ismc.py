@@ -1,0 +1,93 @@
+"""Integral sliding mode control with the model's feed-forward, compiled.
+
+The velocity-level law of the ROS 2 package auv_controllers (Robotic-Decision-Making-Lab, velocity_controllers/
+src/integral_sliding_mode_controller.cpp, IntegralSlidingModeController::update_and_write_commands; designed in
+E. Palmer, C. Holm, G. Hollinger, "Angler: An Autonomy Framework for Intervention Tasks with Lightweight Underwater
+Vehicle Manipulator Systems", ICRA 2024), fed by a kinematic position loop (the velocity reference such a chained
+controller receives). With e = eta - eta_d (angles wrapped) and the body-frame velocity error nu_e = nu_d - nu:
+
+    nu_d     = J^-1 (eta_dot_d - K_pos e)                       position loop, reference-velocity feed-forward
+    nu_d_dot = J^-1 (eta_ddot_d - K_pos e_dot - J_dot nu)        reference acceleration (auv_controllers: 0)
+    tau_0    = M (nu_d_dot + K_p nu_e) + C(nu) nu + D(nu) nu + g(eta)
+    s        = nu_e - nu_e(0) + K_p integral(nu_e dt)            s(0) = 0, the integral sliding surface
+    tau      = tau_0 + K tanh(s / phi)
+
+On the model, s_dot = -M^-1 (K tanh(s/phi) + tau_d): the switching term rejects the matched disturbance tau_d and
+the integral removes the steady error. auv_controllers writes the surface's initial term as K_p nu_e(0); we use
+nu_e(0) so that s(0) = 0 (Utkin's integral sliding mode). Parameter vector: [K_pos (6) | K_p (6) | K (6) | phi (6)];
+state: integral of nu_e (6), nu_e(0) (6), started flag (1). tau_hat (logged) is -K tanh(s/phi), the disturbance
+the switching term cancels.
+"""
+
+from __future__ import annotations
+
+import math
+
+from rov_mav.model.kernel import (
+    body_from_earth,
+    compiled,
+    coriolis_times_nu,
+    damping_times_nu,
+    euler_rates,
+    jacobian_dot_nu,
+    mass_row,
+    restoring,
+    rotation,
+    wrap_angle,
+)
+
+PARAMETERS = (("k_pos", 6), ("kp", 6), ("k", 6), ("phi", 6))
+TUNED = ("k_pos", "kp", "k", "phi")
+BOUNDS = {"k_pos": (0.1, 5.0),
+          "kp": (0.1, 10.0),
+          "k": ([0.5, 0.5, 0.5, 0.05, 0.05, 0.05], [100.0, 100.0, 100.0, 10.0, 10.0, 10.0]),
+          "phi": (0.01, 1.0)}
+STATE_SIZE = 13
+
+
+@compiled
+def step(m, params, eta, nu, ref, dt, state, tau, tau_hat, s):
+    """One tick: writes tau, tau_hat, s (6,) each; updates state."""
+    k_pos, kp, k, phi = params[0:6], params[6:12], params[12:18], params[18:24]
+    integral, initial = state[0:6], state[6:12]
+    started = state[12] != 0.0
+    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
+    cth, sth = math.cos(eta[4]), math.sin(eta[4])
+    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
+    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
+    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
+               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
+    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
+    target, accel = s, tau_hat   # scratch in the eta frame, consumed before s and tau_hat are written
+    for i in range(6):
+        e = eta[i] - ref[i]
+        if i >= 3:
+            e = wrap_angle(e)
+        e_dot = eta_dot[i] - ref[6 + i]
+        target[i] = ref[6 + i] - k_pos[i] * e
+        accel[i] = ref[12 + i] - k_pos[i] * e_dot - A[i]
+    nu_d = body_from_earth(cphi, sphi, cth, sth, R, target)
+    nu_d_dot = body_from_earth(cphi, sphi, cth, sth, R, accel)
+    a0 = nu_d_dot[0] + kp[0] * (nu_d[0] - u)
+    a1 = nu_d_dot[1] + kp[1] * (nu_d[1] - v)
+    a2 = nu_d_dot[2] + kp[2] * (nu_d[2] - w)
+    a3 = nu_d_dot[3] + kp[3] * (nu_d[3] - p)
+    a4 = nu_d_dot[4] + kp[4] * (nu_d[4] - q)
+    a5 = nu_d_dot[5] + kp[5] * (nu_d[5] - r)
+    a = (a0, a1, a2, a3, a4, a5)
+    c = coriolis_times_nu(m, u, v, w, p, q, r)
+    d = damping_times_nu(m, u, v, w, p, q, r)
+    g = restoring(m, cphi, sphi, cth, sth)
+    for i in range(6):
+        error = nu_d[i] - nu[i]
+        if started:
+            integral[i] += error * dt
+        else:
+            initial[i] = error
+        s[i] = error - initial[i] + kp[i] * integral[i]
+        switching = k[i] * math.tanh(s[i] / phi[i])
+        tau[i] = mass_row(m, i, a[0], a[1], a[2], a[3], a[4], a[5]) + c[i] + d[i] + g[i] + switching
+        tau_hat[i] = -switching
+    state[12] = 1.0
