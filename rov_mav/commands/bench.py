@@ -110,8 +110,8 @@ def main(args: argparse.Namespace) -> int:
         backend = DaskBackend(args.cluster)
     else:
         backend = tuning.ThreadBackend(args.threads)
-    total = len(missions) * len(controllers) * iterations + runs
-    with backend, tqdm(total=total, desc="bench", unit="step", file=sys.stderr) as bar:
+    total = bench.work(missions, controllers, training, held_out, args.seeds, options)
+    with backend, tqdm(total=total, desc="bench", unit="tick", unit_scale=True, file=sys.stderr) as bar:
         result = bench.run_bench(missions, controllers, model, training, held_out, args.seeds, options, backend,
                                  args.threads, bar.update)
     settings = {"controllers": controllers, "missions": names, "training": args.training, "held_out": args.scenarios,

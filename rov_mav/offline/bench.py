@@ -29,7 +29,7 @@ from rov_mav.model.thrusters import allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline import pso, tuning
 from rov_mav.offline.scenarios import Scenario
-from rov_mav.offline.simulation import Trace, simulate
+from rov_mav.offline.simulation import CONTROL_DT, Trace, simulate
 
 VOLTAGE = 16.0          # V: a charged 4S pack, the runner's default before the vehicle reports one
 LEVEL = 0.95            # the intervals' confidence
@@ -184,15 +184,31 @@ class BenchResult:
     timing: dict[str, float]
 
 
+def _ticks(mission: Mission) -> int:
+    return mission.sampled_reference(CONTROL_DT).shape[0]
+
+
+def work(missions: Sequence[Mission], controllers: Sequence[str], training: dict[str, list[Scenario]],
+         held_out: dict[str, list[Scenario]], seeds: int, options: pso.PSOOptions) -> int:
+    """Simulated ticks the bench will run (PSO iterations x particles x training scenarios, plus the held-out runs):
+    the unit of its progress."""
+    return sum(len(controllers) * _ticks(m)
+               * (options.iterations * options.particles * len(training[m.name]) + seeds * len(held_out[m.name]))
+               for m in missions)
+
+
 def run_bench(missions: Sequence[Mission], controllers: Sequence[str], model: Vehicle,
               training: dict[str, list[Scenario]], held_out: dict[str, list[Scenario]], seeds: int,
               options: pso.PSOOptions, backend: tuning.Backend, threads: int,
               progress: Callable[[int], None] = lambda n: None) -> BenchResult:
     """The whole bench; training and held-out scenarios per mission name. `progress(n)` after every PSO iteration
-    and every held-out run (options.iterations per tune plus one per run in all)."""
+    and every held-out run with the ticks they simulated (`work` in all)."""
     t0 = time.perf_counter()
-    tuned = [tune_controller(m, kind, model, training[m.name], options, backend, lambda it, best: progress(1))
-             for m in missions for kind in controllers]
+    tuned = []
+    for m in missions:
+        iteration = _ticks(m) * options.particles * len(training[m.name])
+        tuned += [tune_controller(m, kind, model, training[m.name], options, backend,
+                                  lambda it, best, n=iteration: progress(n)) for kind in controllers]
     t1 = time.perf_counter()
     by_name = {m.name: m for m in missions}
     jobs = [(by_name[t.mission], t.settings, scenario, seed)
@@ -201,7 +217,7 @@ def run_bench(missions: Sequence[Mission], controllers: Sequence[str], model: Ve
     def job(args) -> RunFigures:
         mission, settings, scenario, seed = args
         figures = evaluate(mission, settings, model, scenario, seed)
-        progress(1)
+        progress(_ticks(mission))
         return figures
 
     with ThreadPoolExecutor(threads) as pool:
