@@ -73,8 +73,8 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
-def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights, tau_ff,
-                   tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, cost, steps_done):
+def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights,
+                   tau_ff, tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, cost, steps_done):
     """Closed-loop runs of a batch of vehicles: controller at 1/dt, plant by RK4 at dt/substeps.
 
     plant (B, 92), env (B, 22): each run's true vehicle and environment; ctrl (92,): the controller's model;
