@@ -46,6 +46,23 @@ def test_t_interval_covers_a_known_mean_95_percent_of_the_time():
     assert (known.mean, known.low, known.high) == pytest.approx((3.0, 3.0 - 1.96324, 3.0 + 1.96324), abs=1e-5)
 
 
+def test_paired_difference_separates_what_per_controller_intervals_cannot():
+    """Two controllers on shared scenarios whose difficulty varies 10x more than the 1 cm between them: their own
+    intervals overlap, the paired difference is exactly -1 cm, and it pairs only runs both completed."""
+    rng = np.random.default_rng(3)
+    hardness = rng.uniform(0.05, 0.25, 12)
+
+    def run(kind, i, rms, completed=True):
+        return bench.RunFigures(kind, "line", f"s{i // 3}", "g", i % 3, completed, rms, 0.0, 0.0, 0.0, 0.0)
+    runs = [run("a", i, h) for i, h in enumerate(hardness)] + [run("b", i, h + 0.01) for i, h in enumerate(hardness)]
+    runs.append(run("a", 12, 5.0, completed=False))
+    runs.append(run("b", 12, 0.0))
+    own = {s.controller: s.figures["rms_position_m"] for s in bench.summarize(runs) if s.group == "g"}
+    assert own["a"].high > own["b"].low
+    diff = bench.paired_difference(runs, "a", "b", "line", "g")
+    assert diff.mean == pytest.approx(-0.01) and diff.high == pytest.approx(-0.01)
+
+
 def test_the_controller_sees_sampled_delayed_telemetry(vehicle, line):
     """10 Hz samples 0.15 s late: the runner's Controller fed, at each tick, the true state of the last sample that
     has arrived (tick 0's before any) reproduces the batched run's commands exactly; the delay changes the run."""

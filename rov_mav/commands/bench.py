@@ -147,7 +147,7 @@ def _write(out: Path, result, settings: dict, missions, model, held_out) -> None
           f"{result.timing['evaluate_s']:.0f} s); who tracks best (fewest failures, then RMS position error):")
     for m in missions:
         for group in groups(result.summaries, m.name):
-            lead = leader(result.summaries, m.name, group)
+            lead = leader(result.summaries, result.runs, m.name, group)
             best = ("every run diverged" if lead is None else
                     f"{lead[0].controller}: {lead[0].figures['rms_position_m'].mean * 100:.3g} cm, "
                     f"{lead[0].failures}/{lead[0].runs} failed" + (" (clear)" if lead[1] else ""))

@@ -97,6 +97,19 @@ def mean_interval(values: Sequence[float], level: float = LEVEL) -> Interval:
     return Interval(mean, mean - half, mean + half)
 
 
+def paired_difference(runs: Sequence[RunFigures], a: str, b: str, mission: str, group: str,
+                      figure: str = "rms_position_m") -> Interval:
+    """Mean and t-interval of `figure` of controller a minus b over the runs both completed on the same scenario and
+    seed (the seeds are shared, so this separates controllers that per-controller intervals cannot); `group`
+    ALL_GROUPS pairs every group."""
+    def by_run(kind: str) -> dict[tuple[str, int], float]:
+        return {(r.scenario, r.seed): getattr(r, figure) for r in runs
+                if r.controller == kind and r.mission == mission and r.completed
+                and group in (ALL_GROUPS, r.group)}
+    first, second = by_run(a), by_run(b)
+    return mean_interval([first[key] - second[key] for key in first.keys() & second.keys()])
+
+
 def max_thrust(mission: Mission, scenario: Scenario) -> float:
     """N per thruster in a scenario: its own limit, else the mission's, else the tuner's default."""
     return scenario.max_thrust or mission.limits.max_thrust or tuning.DEFAULT_MAX_THRUST

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from rov_mav.offline.bench import ALL_GROUPS, BenchResult, Interval, Summary
+from rov_mav.offline.bench import ALL_GROUPS, BenchResult, Interval, RunFigures, Summary, paired_difference
 
 # (figure, column title, scale to the shown unit)
 COLUMNS = (("rms_position_m", "RMS position error (cm)", 100.0),
@@ -30,17 +30,18 @@ def groups(summaries: Sequence[Summary], mission: str) -> list[str]:
     return list(dict.fromkeys(seen)) + [ALL_GROUPS]
 
 
-def leader(summaries: Sequence[Summary], mission: str, group: str, figure: str = "rms_position_m"
-           ) -> tuple[Summary, bool] | None:
-    """Who leads a group: fewest failures first, then the lowest mean `figure`; and whether the lead is clear (every
-    other controller failed more often, or as often with an interval of `figure` wholly above the leader's). None
-    when every run of every controller failed."""
+def leader(summaries: Sequence[Summary], runs: Sequence[RunFigures], mission: str, group: str,
+           figure: str = "rms_position_m") -> tuple[Summary, bool] | None:
+    """Who leads a group: fewest failures first, then the lowest mean `figure`; and whether the lead is clear: every
+    other controller failed more often, or as often with the leader's paired difference (`paired_difference`, same
+    scenarios and seeds) wholly below zero. None when every run of every controller failed."""
     rows = [s for s in summaries if s.mission == mission and s.group == group and s.failures < s.runs]
     if not rows:
         return None
     rows.sort(key=lambda s: (s.failures, s.figures[figure].mean))
     best = rows[0]
-    clear = all(other.failures > best.failures or best.figures[figure].high < other.figures[figure].low
+    clear = all(other.failures > best.failures
+                or paired_difference(runs, best.controller, other.controller, mission, group, figure).high < 0
                 for other in rows[1:])
     return best, clear
 
@@ -71,12 +72,13 @@ def markdown(result: BenchResult, settings: dict) -> str:
                              + " |")
     lines += ["", f"## {LEADERS_TITLE}", "",
               "Fewest failures first, then the lowest mean RMS position error; *clear*: every other controller failed "
-              "more often or its interval lies wholly above.",
+              "more often, or the 95 % t-interval of the paired difference (leader minus it, over the scenarios and "
+              "seeds both completed) lies wholly below zero.",
               "", "| mission | group | controller | failures | RMS position error (cm) | lead |",
               "|---|---|---|---:|---:|---|"]
     for mission in missions:
         for group in groups(result.summaries, mission):
-            lead = leader(result.summaries, mission, group)
+            lead = leader(result.summaries, result.runs, mission, group)
             if lead is None:
                 lines.append(f"| {mission} | {group} | (every run diverged) | | | |")
                 continue
