@@ -8,7 +8,9 @@ thrusters (`tuning.wrench_capacity` at the scenario's or the mission's max thrus
 max position error, RMS attitude error, electrical energy (the wrench the plant received, allocated to the thrusters
 by the pseudo-inverse, each thrust to its current by the T200 data at VOLTAGE), the fraction of ticks with a
 saturated command, and whether the run diverged. Per controller x mission x scenario group (and all groups): the
-mean of each figure over the completed runs with a Student-t 95 % interval (`mean_interval`), and the failures.
+mean of each figure over the completed runs with a Student-t 95 % interval (`mean_interval`), and the failures;
+between two controllers, the t-interval of their paired difference over the same scenarios and seeds
+(`paired_difference`).
 """
 
 from __future__ import annotations
