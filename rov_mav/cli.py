@@ -17,6 +17,7 @@ from rov_mav.config import ConfigError
 SUBCOMMAND_MODULES = (
     "rov_mav.commands.simulate",
     "rov_mav.commands.tune",
+    "rov_mav.commands.bench",
     "rov_mav.commands.run",
     "rov_mav.commands.sim_bridge",
     "rov_mav.commands.analyze",

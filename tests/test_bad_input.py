@@ -24,6 +24,7 @@ from rov_mav import cli
 from rov_mav.config import MAX_FILE_BYTES
 
 SQUARE = str(MISSIONS / "square.yaml")
+ROBUST = str(MISSIONS / "scenarios" / "robust.yaml")
 
 
 def png() -> bytes:
@@ -107,6 +108,9 @@ FILE_OPTIONS = {   # where a file enters: argv with {} for the file
     "tune --fuzzy-rules": ["tune", SQUARE, "--fuzzy-rules", "{}"],
     "tune --scenarios": ["tune", SQUARE, "--scenarios", "{}"],
     "tune --bounds-file": ["tune", SQUARE, "--bounds-file", "{}"],
+    "bench --missions": ["bench", "--missions", SQUARE, "{}"],
+    "bench --scenarios": ["bench", "--missions", SQUARE, "--training", ROBUST, "--scenarios", "{}"],
+    "bench --training": ["bench", "--missions", SQUARE, "--scenarios", ROBUST, "--training", "{}"],
     "sim-bridge --environment": ["sim-bridge", "--environment", "{}"],
     "sim-bridge --vehicle": ["sim-bridge", "--vehicle", "{}"],
 }

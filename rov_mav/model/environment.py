@@ -24,12 +24,20 @@ class NoiseSchema(config.StrictModel):
     rate: NonNegative = 0.0       # rad/s, on p, q, r
 
 
+class TelemetrySchema(config.StrictModel):
+    """How the controller sees the state offline: sampled at `rate` and `delay` late (a 5-10 Hz MAVLink stream)."""
+
+    rate: Annotated[float, Field(ge=0, le=1000)] = 0.0   # Hz; 0 = every control tick
+    delay: Annotated[float, Field(ge=0, le=5)] = 0.0     # s, from the sample to the controller
+
+
 class EnvironmentSchema(config.StrictModel):
     disturbance: Vec6 = [0.0] * 6             # tau_d, body frame, N and N m (Eq. 2.7)
     disturbance_amplitude: Vec6 = [0.0] * 6   # amplitude of a sinusoid added to tau_d
     disturbance_period: NonNegative = 0.0     # s; 0 = no sinusoid
     current: Vec3 = [0.0] * 3                 # NED water velocity, m/s
     noise: NoiseSchema = NoiseSchema()
+    telemetry: TelemetrySchema = TelemetrySchema()   # offline only: `run` sees the real link's stream
 
     @model_validator(mode="after")
     def _sinusoid_needs_a_period(self) -> "EnvironmentSchema":
@@ -51,6 +59,7 @@ class Environment:
     disturbance_period: float = 0.0
     current: np.ndarray = field(default_factory=lambda: np.zeros(3))
     noise: np.ndarray = field(default_factory=lambda: np.zeros(4))   # position, attitude, velocity, rate
+    telemetry: np.ndarray = field(default_factory=lambda: np.zeros(2))   # sample period (s, 0 = every tick), delay (s)
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":
@@ -60,6 +69,7 @@ class Environment:
             disturbance_period=s.disturbance_period,
             current=np.array(s.current, dtype=float),
             noise=np.array([s.noise.position, s.noise.attitude, s.noise.velocity, s.noise.rate]),
+            telemetry=np.array([1.0 / s.telemetry.rate if s.telemetry.rate > 0 else 0.0, s.telemetry.delay]),
         )
 
     @property
@@ -77,6 +87,8 @@ class Environment:
         out[kernel.E_PERIOD] = self.disturbance_period
         out[kernel.E_CURRENT:kernel.E_CURRENT + 3] = self.current
         out[kernel.E_NOISE:kernel.E_NOISE + 4] = self.noise
+        out[kernel.E_SAMPLE_PERIOD] = self.telemetry[0]
+        out[kernel.E_SAMPLE_DELAY] = self.telemetry[1]
         return out
 
 

@@ -27,13 +27,16 @@ P_RB = 89
 P_SIZE = 92
 
 # Packed environment vector: constant disturbance (6), sinusoid amplitude (6), sinusoid period (1),
-# NED current (3), sensor noise std for position, attitude, linear velocity, angular rate (4).
+# NED current (3), sensor noise std for position, attitude, linear velocity, angular rate (4), telemetry sample
+# period and delay (2, s; 0 = the controller measures every tick, without delay).
 E_DIST = 0
 E_AMP = 6
 E_PERIOD = 12
 E_CURRENT = 13
 E_NOISE = 16
-E_SIZE = 20
+E_SAMPLE_PERIOD = 20
+E_SAMPLE_DELAY = 21
+E_SIZE = 22
 
 # Floating-point licences for the compiled code: fused multiply-add and reassociation, but NaN and inf keep their
 # meaning (the divergence check relies on them).

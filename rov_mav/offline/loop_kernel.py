@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit
 
 from rov_mav.control.law_kernel import STATE_SIZE, controller_step
-from rov_mav.model.kernel import E_NOISE, FAST, compiled, rk4_step, wrap_angle
+from rov_mav.model.kernel import E_NOISE, E_SAMPLE_DELAY, E_SAMPLE_PERIOD, FAST, compiled, rk4_step, wrap_angle
 
 # Limits beyond which a simulated vehicle counts as diverged (Assumption 1 and sanity bounds).
 MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular at pi/2)
@@ -18,9 +18,11 @@ MAX_SPEED = 20.0        # m/s or rad/s, any component of nu
 DIVERGED_COST = 1.0e12
 
 
-def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """simulate_batch's (cost_weights, tau_ff, tau_max) for Eq. 2.32 as printed: Q = R = I, no saturation limit."""
-    return np.array([np.ones(6), np.zeros(6), np.ones(6)]), np.zeros((ref.shape[0], 6)), np.full(6, np.inf)
+def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """simulate_batch's (cost_weights, tau_ff, tau_max, tau_limit) for Eq. 2.32 as printed: Q = R = I, no
+    saturation (neither cut-off nor clipping)."""
+    return (np.array([np.ones(6), np.zeros(6), np.ones(6)]), np.zeros((ref.shape[0], 6)), np.full(6, np.inf),
+            np.full(6, np.inf))
 
 
 @compiled
@@ -46,6 +48,16 @@ def _saturated(tau, tau_max):
 
 
 @compiled
+def _measure(x, noise, out):
+    """The state as the sensors give it: out (12,) = x plus white noise (position, attitude, velocity, rate std)."""
+    for i in range(6):
+        sigma = noise[0] if i < 3 else noise[1]
+        out[i] = x[i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+        sigma = noise[2] if i < 3 else noise[3]
+        out[6 + i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+
+
+@compiled
 def _running_cost(weights, s, x, ref, tau, tau_ff):
     """s^T Q s + e^T Q_e e + (tau - tau_ff)^T R (tau - tau_ff) at one tick (Eq. 2.32 and its tracking form)."""
     total = 0.0
@@ -61,19 +73,24 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
-def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights, tau_ff, tau_max, eta_log, nu_log, tau_log, tau_hat_log, s_log,
-                   gamma_log, cost, steps_done):
+def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights,
+                   tau_ff, tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, cost, steps_done):
     """Closed-loop runs of a batch of vehicles: controller at 1/dt, plant by RK4 at dt/substeps.
 
-    plant (B, 92), env (B, 20): each run's true vehicle and environment; ctrl (92,): the controller's model;
+    plant (B, 92), env (B, 22): each run's true vehicle and environment; ctrl (92,): the controller's model;
     params (B, P): each run's controller parameter vector for controller `kind` (`law_kernel.controller_step`,
     with the fuzzy rate table, table_xmax); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
+    The controller sees the measured state (true state plus the environment's sensor noise, drawn every tick) as
+    telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
+    the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
     Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
-    |tau_i| exceeds tau_max (6,) (thruster saturation). steps_done (B,) receives the index of the last tick
-    logged (N for a run that completed; a run that ends early stops at the last state before it failed).
-    The *_log arrays are (B, N+1, 6) to record, or (B, 0, 6) to skip recording.
+    |tau_i| exceeds tau_max (6,) (thruster saturation as failure, for tuning); otherwise the plant receives the
+    commanded wrench clipped to +-tau_limit (6,) per axis (saturation as the vehicle meets it; inf: none).
+    steps_done (B,) receives the index of the last tick logged (N for a run that completed; a run that ends early
+    stops at the last state before it failed). The *_log arrays are (B, N+1, 6) to record the true state and the
+    commanded (unclipped) wrench, or (B, 0, 6) to skip recording.
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     n_runs = params.shape[0]
     n_steps = ref.shape[0] - 1
@@ -83,11 +100,15 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
         np.random.seed(seeds[b])
         x = x0.copy()
         ws_plant = np.zeros(80)
+        every = max(1, int(round(env[b, E_SAMPLE_PERIOD] / dt)))
+        late = max(0, int(round(env[b, E_SAMPLE_DELAY] / dt)))
+        measured = np.zeros((late + 1, 12))   # ring of the last late + 1 ticks' measurements
         eta_m = np.zeros(6)
         nu_m = np.zeros(6)
         state = np.zeros(STATE_SIZE)
         tau_hat = np.zeros(6)
         tau = np.zeros(6)
+        applied = np.zeros(6)
         s = np.zeros(6)
         grad = np.zeros(6)
         gamma = np.zeros(6)
@@ -95,11 +116,13 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
         total = 0.0
         done = n_steps
         for k in range(n_steps + 1):
-            for i in range(6):
-                sigma = noise[0] if i < 3 else noise[1]
-                eta_m[i] = x[i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
-                sigma = noise[2] if i < 3 else noise[3]
-                nu_m[i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+            _measure(x, noise, measured[k % (late + 1)])
+            sampled = k - late
+            if k == 0 or (sampled >= 0 and sampled % every == 0):
+                held = measured[max(sampled, 0) % (late + 1)]
+                for i in range(6):
+                    eta_m[i] = held[i]
+                    nu_m[i] = held[6 + i]
             controller_step(kind, ctrl, params[b], table, table_xmax, eta_m, nu_m, ref[k], dt, state, tau, tau_hat,
                             s, grad, gamma)
             if record:
@@ -117,8 +140,10 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
                 total = DIVERGED_COST
                 break
             total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
+            for i in range(6):
+                applied[i] = min(max(tau[i], -tau_limit[i]), tau_limit[i])
             for j in range(substeps):
-                rk4_step(plant[b], env[b], x, tau, k * dt + j * h, h, ws_plant)
+                rk4_step(plant[b], env[b], x, applied, k * dt + j * h, h, ws_plant)
             if _diverged(x):
                 done = k
                 total = DIVERGED_COST

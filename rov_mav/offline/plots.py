@@ -161,3 +161,18 @@ def plot_convergence(cost_history: np.ndarray, gain_history: np.ndarray, title: 
     ax_gain.legend(ncol=6, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14))
     ax_gain.grid(alpha=0.3)
     return _save(fig, path)
+
+
+def plot_bench(values: dict[str, dict[str, np.ndarray]], title: str, path: Path) -> Path:
+    """Box plots of held-out figures per controller: values[panel title][controller] = one value per completed run
+    (already in the panel's unit). Boxes: quartiles; whiskers: 1.5 IQR; points: runs beyond."""
+    panels = list(values.items())
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.5), squeeze=False)
+    fig.suptitle(title)
+    for ax, (label, per_controller) in zip(axes[0], panels):
+        names = list(per_controller)
+        ax.boxplot([per_controller[n] for n in names], tick_labels=names)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, axis="y")
+        ax.tick_params(axis="x", rotation=30)
+    return _save(fig, path)

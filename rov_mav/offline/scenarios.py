@@ -2,7 +2,9 @@
 
 A scenarios file lists entries; each may replace the mission's `environment` block (same keys as a mission's),
 scale the simulated plant against the controller's model (mass, inertia, added mass, damping: `plant_scale`
-1.2 is a plant 20 % heavier than the model) and seed the sensor noise. Example: missions/scenarios/robust.yaml.
+1.2 is a plant 20 % heavier than the model), seed the sensor noise, limit each thruster's thrust (`max_thrust`, N:
+the bench clips the wrench to what such thrusters can give) and name the group it reports under (`group`).
+Examples: missions/scenarios/robust.yaml (the tuning set), missions/scenarios/bench.yaml (the bench's held-out set).
 """
 
 from __future__ import annotations
@@ -21,7 +23,9 @@ class _ScenarioSchema(config.StrictModel):
     name: str
     environment: EnvironmentSchema | None = None               # None: the mission's own
     plant_scale: Annotated[float, Field(gt=0.2, lt=5.0)] = 1.0
-    seed: Annotated[int, Field(ge=0)] = 0
+    seed: Annotated[int, Field(ge=0, le=2**31)] = 0   # the bench's N runs use seed, seed + 1, ...
+    max_thrust: Annotated[float, Field(gt=0, le=100)] | None = None   # N per thruster; None: the mission's limit
+    group: str | None = None                                           # None: the scenario's name
 
 
 class _ScenariosFile(config.StrictModel):
@@ -34,6 +38,8 @@ class Scenario:
     environment: Environment
     plant_scale: float   # true plant = model.scaled(plant_scale)
     seed: int            # sensor-noise seed
+    max_thrust: float | None = None   # N per thruster (None: the mission's limit)
+    group: str = "nominal"            # the bench's reporting group (a file's entries default to their name)
 
 
 def nominal(environment: Environment, seed: int = 0) -> Scenario:
@@ -50,5 +56,5 @@ def load_scenarios(path: str | Path, mission_environment: Environment) -> list[S
         raise config.ConfigError(f"{path}: scenarios: duplicate name '{duplicates[0]}'")
     return [Scenario(s.name,
                      mission_environment if s.environment is None else Environment.from_schema(s.environment),
-                     s.plant_scale, s.seed)
+                     s.plant_scale, s.seed, s.max_thrust, s.group or s.name)
             for s in spec.scenarios]

@@ -34,8 +34,9 @@ class Trace:
 
 def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, plant: Vehicle | None = None,
              environment: Environment | None = None, duration: float | None = None, dt: float = CONTROL_DT,
-             substeps: int = SUBSTEPS, seed: int = 0) -> Trace:
-    """One closed-loop run, recorded. `model` is the controller's vehicle, `plant` the simulated one (default same)."""
+             substeps: int = SUBSTEPS, seed: int = 0, wrench_limit: np.ndarray | None = None) -> Trace:
+    """One closed-loop run, recorded. `model` is the controller's vehicle, `plant` the simulated one (default same);
+    `wrench_limit` (6,): the plant receives the commanded wrench clipped to it per axis (default: unclipped)."""
     environment = mission.environment if environment is None else environment
     plant = model if plant is None else plant
     ref = mission.sampled_reference(dt, duration)
@@ -44,9 +45,12 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     cost = np.zeros(1)
     steps = np.zeros(1, dtype=np.int64)
     x0 = np.concatenate([mission.start_pose, np.zeros(6)])
+    weights, tau_ff, tau_max, tau_limit = loop_kernel.printed_cost(ref)
+    if wrench_limit is not None:
+        tau_limit = np.asarray(wrench_limit, float)
     loop_kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.vector[None],
-                          *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
-                          *loop_kernel.printed_cost(ref), *logs, cost, steps)
+                               *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
+                               weights, tau_ff, tau_max, tau_limit, *logs, cost, steps)
     done = int(steps[0])
     eta, nu, tau, tau_hat, s, gamma = (log[0, :done + 1] for log in logs)
     return Trace(t=np.arange(done + 1) * dt, eta=eta, nu=nu, reference=ref[:done + 1], tau=tau, tau_hat=tau_hat,

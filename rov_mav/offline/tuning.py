@@ -31,6 +31,7 @@ from rov_mav.offline.simulation import Trace
 COSTS = ("tracking", "report")
 AGGREGATES = ("mean", "worst")
 DEFAULT_MAX_THRUST = 40.0   # N per thruster: the T200's reverse limit at 16 V, as in the missions' limits
+NO_LIMIT = np.full(6, np.inf)   # the tuner's runs fail on saturation (tau_max) before any clipping could act
 CHUNKS_PER_WORKER = 4       # tasks per worker thread and iteration: balances runs that stop early
 
 # Tracking cost (ERRATA, PSO gap), Bryson's rule: each term divided by the square of its acceptable size, so 1 cm
@@ -111,8 +112,9 @@ class TuningProblem:
         empty = np.zeros((n, 0, 6))
         params = np.tile(self.params, (n, 1))
         params[:, :gains.shape[1]] = gains
-        loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, params, *self.controller, self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights,
-                              self.tau_ff, self.tau_max, empty, empty, empty, empty, empty, empty, cost, steps)
+        loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, params, *self.controller,
+                                   self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights, self.tau_ff,
+                                   self.tau_max, NO_LIMIT, empty, empty, empty, empty, empty, empty, cost, steps)
         return cost, steps
 
     def trace_cost(self, trace: Trace) -> float:

@@ -1,0 +1,88 @@
+"""The bench's Markdown: one table per mission (controller x scenario group), then who leads where."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from rov_mav.offline.bench import ALL_GROUPS, BenchResult, Interval, RunFigures, Summary, paired_difference
+
+# (figure, column title, scale to the shown unit)
+COLUMNS = (("rms_position_m", "RMS position error (cm)", 100.0),
+           ("max_position_m", "max position error (cm)", 100.0),
+           ("rms_attitude_rad", "RMS attitude error (deg)", math.degrees(1.0)),
+           ("energy_wh", "energy (Wh)", 1.0),
+           ("saturation_fraction", "saturated (% of time)", 100.0))
+
+
+LEADERS_TITLE = "Who tracks best where"
+
+
+def _cell(interval: Interval, scale: float) -> str:
+    if math.isnan(interval.mean):
+        return "-"
+    return f"{interval.mean * scale:.3g} [{interval.low * scale:.3g}, {interval.high * scale:.3g}]"
+
+
+def groups(summaries: Sequence[Summary], mission: str) -> list[str]:
+    """The mission's scenario groups in file order, then ALL_GROUPS."""
+    seen = [s.group for s in summaries if s.mission == mission and s.group != ALL_GROUPS]
+    return list(dict.fromkeys(seen)) + [ALL_GROUPS]
+
+
+def leader(summaries: Sequence[Summary], runs: Sequence[RunFigures], mission: str, group: str,
+           figure: str = "rms_position_m") -> tuple[Summary, bool] | None:
+    """Who leads a group: fewest failures first, then the lowest mean `figure`; and whether the lead is clear: every
+    other controller failed more often, or as often with the leader's paired difference (`paired_difference`, same
+    scenarios and seeds) wholly below zero. None when every run of every controller failed."""
+    rows = [s for s in summaries if s.mission == mission and s.group == group and s.failures < s.runs]
+    if not rows:
+        return None
+    rows.sort(key=lambda s: (s.failures, s.figures[figure].mean))
+    best = rows[0]
+    clear = all(other.failures > best.failures
+                or paired_difference(runs, best.controller, other.controller, mission, group, figure).high < 0
+                for other in rows[1:])
+    return best, clear
+
+
+def markdown(result: BenchResult, settings: dict) -> str:
+    """bench.md: how it was run, a table per mission, and the leader per scenario group."""
+    s = settings
+    lines = [
+        "# rov-mav bench",
+        "",
+        f"Controllers {', '.join(s['controllers'])}; each PSO-tuned ({s['particles']} particles x {s['iterations']} "
+        f"iterations, swarm seed {s['pso_seed']}, tracking cost, mean over the training scenarios of "
+        f"`{s['training']}`) per mission, then flown on the held-out scenarios of `{s['held_out']}` with "
+        f"{s['seeds']} noise seeds each. Cells: mean over the completed runs [{s['interval']}]; failures: runs that "
+        f"diverged. Energy: electrical, T200 data at {s['voltage_v']:g} V. Wall time {result.timing['total_s']:.0f} s "
+        f"(tuning {result.timing['tune_s']:.0f} s, held-out runs {result.timing['evaluate_s']:.0f} s) with "
+        f"{s['compute']}.",
+    ]
+    missions = list(dict.fromkeys(x.mission for x in result.summaries))
+    for mission in missions:
+        lines += ["", f"## {mission}", "",
+                  "| controller | group | runs | failures | " + " | ".join(c[1] for c in COLUMNS) + " |",
+                  "|---|---|---:|---:|" + "---:|" * len(COLUMNS)]
+        for group in groups(result.summaries, mission):
+            for row in (x for x in result.summaries if x.mission == mission and x.group == group):
+                cells = [_cell(row.figures[f], scale) for f, _, scale in COLUMNS]
+                lines.append(f"| {row.controller} | {group} | {row.runs} | {row.failures} | " + " | ".join(cells)
+                             + " |")
+    lines += ["", f"## {LEADERS_TITLE}", "",
+              "Fewest failures first, then the lowest mean RMS position error; *clear*: every other controller failed "
+              "more often, or the 95 % t-interval of the paired difference (leader minus it, over the scenarios and "
+              "seeds both completed) lies wholly below zero.",
+              "", "| mission | group | controller | failures | RMS position error (cm) | lead |",
+              "|---|---|---|---:|---:|---|"]
+    for mission in missions:
+        for group in groups(result.summaries, mission):
+            lead = leader(result.summaries, result.runs, mission, group)
+            if lead is None:
+                lines.append(f"| {mission} | {group} | (every run diverged) | | | |")
+                continue
+            best, clear = lead
+            lines.append(f"| {mission} | {group} | {best.controller} | {best.failures}/{best.runs} | "
+                         f"{_cell(best.figures['rms_position_m'], 100.0)} | {'clear' if clear else 'overlapping'} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,189 @@
+"""`rov-mav bench`: its statistics, the kernel's telemetry sampling and wrench clipping it relies on, the held-out set,
+a tiny bench end to end through the CLI, and its one-line refusals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from conftest import MISSIONS
+from rerun.chunk import RrdReader
+from test_bad_input import assert_one_line, files_under, rov_mav
+
+from rov_mav import cli
+from rov_mav.control.controller import Controller, load_settings
+from rov_mav.mission.metrics import trace_metrics
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import kernel
+from rov_mav.model.environment import Environment
+from rov_mav.offline import bench, tuning
+from rov_mav.offline.scenarios import load_scenarios
+from rov_mav.offline.simulation import simulate
+
+LINE = MISSIONS / "line.yaml"
+TRAINING = MISSIONS / "scenarios" / "robust.yaml"
+HELD_OUT = MISSIONS / "scenarios" / "bench.yaml"
+
+
+@pytest.fixture(scope="module")
+def line():
+    return load_mission(LINE)
+
+
+def test_t_interval_covers_a_known_mean_95_percent_of_the_time():
+    """5 draws per sample: the t-interval covers the true mean in 95 % of 4000 samples (a normal-quantile interval
+    would cover about 88 %), on skewed data too it stays near; 1..5 gives 3 +- t(0.975, 4) s / sqrt(5) = 1.963."""
+    rng = np.random.default_rng(7)
+    for draw, mean in ((lambda n: rng.normal(3.0, 2.0, n), 3.0), (lambda n: rng.gamma(8.0, 0.5, n), 4.0)):
+        covered = 0
+        for _ in range(4000):
+            interval = bench.mean_interval(draw(5))
+            covered += interval.low <= mean <= interval.high
+        assert 0.93 <= covered / 4000 <= 0.965
+    known = bench.mean_interval([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert (known.mean, known.low, known.high) == pytest.approx((3.0, 3.0 - 1.96324, 3.0 + 1.96324), abs=1e-5)
+
+
+def test_paired_difference_separates_what_per_controller_intervals_cannot():
+    """Two controllers on shared scenarios whose difficulty varies 10x more than the 1 cm between them: their own
+    intervals overlap, the paired difference is exactly -1 cm, and it pairs only runs both completed."""
+    rng = np.random.default_rng(3)
+    hardness = rng.uniform(0.05, 0.25, 12)
+
+    def run(kind, i, rms, completed=True):
+        return bench.RunFigures(kind, "line", f"s{i // 3}", "g", i % 3, completed, rms, 0.0, 0.0, 0.0, 0.0)
+    runs = [run("a", i, h) for i, h in enumerate(hardness)] + [run("b", i, h + 0.01) for i, h in enumerate(hardness)]
+    runs.append(run("a", 12, 5.0, completed=False))
+    runs.append(run("b", 12, 0.0))
+    own = {s.controller: s.figures["rms_position_m"] for s in bench.summarize(runs) if s.group == "g"}
+    assert own["a"].high > own["b"].low
+    diff = bench.paired_difference(runs, "a", "b", "line", "g")
+    assert diff.mean == pytest.approx(-0.01) and diff.high == pytest.approx(-0.01)
+
+
+def test_the_controller_sees_sampled_delayed_telemetry(vehicle, line):
+    """10 Hz samples 0.15 s late: the runner's Controller fed, at each tick, the true state of the last sample that
+    has arrived (tick 0's before any) reproduces the batched run's commands exactly; the delay changes the run."""
+    settings = load_settings("fuzzy")   # stateful: its estimate integrates what it was shown
+    delayed = Environment(disturbance=line.environment.disturbance, telemetry=np.array([0.1, 0.15]))
+    trace = simulate(line, settings, vehicle, environment=delayed, duration=6.0)
+    assert trace.completed
+    controller = Controller(vehicle, settings)
+    every, late = 10, 15
+    for k in range(len(trace.t)):
+        arrived = max(0, (k - late) // every * every) if k >= late else 0
+        out = controller.step(trace.eta[arrived], trace.nu[arrived], trace.reference[k], 0.01)
+        np.testing.assert_allclose(out.tau, trace.tau[k], rtol=0, atol=1e-9, err_msg=f"tick {k}")
+    prompt = simulate(line, settings, vehicle, environment=line.environment, duration=6.0)
+    assert np.abs(prompt.eta - trace.eta).max() > 1e-3
+
+
+def test_the_plant_receives_the_clipped_wrench(vehicle, line):
+    """With a wrench limit the commands exceed it, and each logged step is one RK4 step of the plant under the
+    clipped command; an infinite limit is the unclipped run bit for bit."""
+    limit = np.array([15.0, 15.0, 15.0, 0.5, 0.5, 0.5])
+    settings = load_settings("smc")
+    trace = simulate(line, settings, vehicle, duration=3.0, wrench_limit=limit)
+    assert np.any(np.abs(trace.tau) > limit)
+    env, ws = line.environment.packed(), np.zeros(80)
+    for k in range(len(trace.t) - 1):
+        x = np.concatenate([trace.eta[k], trace.nu[k]])
+        kernel.rk4_step(vehicle.packed(), env, x, np.clip(trace.tau[k], -limit, limit), k * 0.01, 0.01, ws)
+        np.testing.assert_allclose(x, np.concatenate([trace.eta[k + 1], trace.nu[k + 1]]), rtol=0, atol=1e-12)
+    free = simulate(line, settings, vehicle, duration=3.0)
+    unlimited = simulate(line, settings, vehicle, duration=3.0, wrench_limit=np.full(6, np.inf))
+    assert np.array_equal(free.eta, unlimited.eta) and not np.array_equal(free.eta, trace.eta)
+
+
+@pytest.mark.parametrize("training_file", [TRAINING, MISSIONS / "scenarios" / "robust_telemetry.yaml"])
+def test_held_out_scenarios_differ_from_training(line, training_file):
+    """No held-out scenario repeats a training one (of either shipped training set); every held-out one has noise
+    and sampled, delayed telemetry (robust.yaml has neither together); their seeds are disjoint; every condition the
+    issue names is there."""
+    training = load_scenarios(training_file, line.environment)
+    held_out = load_scenarios(HELD_OUT, line.environment)
+
+    def key(s):
+        return s.plant_scale, s.max_thrust, tuple(s.environment.packed())
+    assert not {key(s) for s in held_out} & {key(s) for s in training}
+    if training_file == TRAINING:
+        assert all(s.environment.telemetry[0] == s.environment.telemetry[1] == 0 for s in training)
+    for s in held_out:
+        assert 0.1 <= s.environment.telemetry[0] <= 0.2 and s.environment.telemetry[1] > 0   # 5-10 Hz, late
+        assert np.all(s.environment.noise > 0)
+    assert not {s.seed for s in training} & {s.seed + j for s in held_out for j in range(5)}
+    assert {s.plant_scale for s in held_out} >= {0.8, 1.2}
+    assert any(np.any(s.environment.current) for s in held_out)
+    assert any(s.environment.disturbance_period > 0 for s in held_out)
+    assert any(s.max_thrust is not None and s.max_thrust < 40 for s in held_out)
+
+
+def test_tiny_bench_through_the_cli(tmp_path, capsys, vehicle, line):
+    """2 controllers, the line, 2 seeds, a 4x2 swarm: every output is written, and its numbers are the runs'
+    (each JSON run equals an independent simulate of the tuned gains written beside it; each summary, its runs)."""
+    out = tmp_path / "bench"
+    assert cli.main(["bench", "--controllers", "pid,smc", "--missions", str(LINE), "--seeds", "2",
+                     "--tune-budget", "4x2", "--out", str(out)]) == 0
+    printed = capsys.readouterr()
+    assert "bench:" in printed.err                     # the progress bar
+    doc = json.loads((out / "bench.json").read_text())
+    held_out = {s.name: s for s in load_scenarios(HELD_OUT, line.environment)}
+    assert len(doc["runs"]) == 2 * 2 * len(held_out)
+    for kind in ("pid", "smc"):
+        settings = load_settings(kind, out / "gains" / f"line-{kind}.yaml")
+        assert [t["gains"] for t in doc["tuned"] if t["controller"] == kind] == [settings.as_yaml()]
+        for run in [r for r in doc["runs"] if r["controller"] == kind][::5]:
+            scenario = held_out[run["scenario"]]
+            capacity = tuning.wrench_capacity(vehicle, scenario.max_thrust or 40.0)
+            trace = simulate(line, settings, vehicle, plant=vehicle.scaled(scenario.plant_scale),
+                             environment=scenario.environment, seed=run["seed"], wrench_limit=capacity)
+            metrics = trace_metrics("line", kind, trace)
+            assert run["completed"] == metrics["completed"]
+            assert run["rms_position_m"] == pytest.approx(metrics["rms_position_error_m"], rel=1e-12)
+            assert run["rms_attitude_rad"] == pytest.approx(metrics["rms_attitude_error_rad"], rel=1e-12)
+            assert 0 < run["energy_wh"] < 300 and 0 <= run["saturation_fraction"] <= 1
+    for row in doc["summary"]:
+        members = [r for r in doc["runs"] if r["controller"] == row["controller"]
+                   and (row["group"] == "all" or r["group"] == row["group"])]
+        done = [r["rms_position_m"] for r in members if r["completed"]]
+        assert row["runs"] == len(members) and row["failures"] == len(members) - len(done)
+        if done:
+            assert row["rms_position_m"]["mean"] == pytest.approx(np.mean(done), rel=1e-12)
+            assert row["rms_position_m"]["low"] <= row["rms_position_m"]["mean"] <= row["rms_position_m"]["high"]
+    table = (out / "bench.md").read_text()
+    assert "| pid | all | 16 |" in table and "| smc | waves | 2 |" in table
+    assert (out / "errors-line.png").stat().st_size > 10_000
+    for kind in ("pid", "smc"):   # the recording holds the controller's median completed run
+        done = sorted(r["rms_position_m"] for r in doc["runs"] if r["controller"] == kind and r["completed"])
+        if not done:
+            assert not (out / "rerun" / f"{kind}.rrd").exists()
+            continue
+        chunks = RrdReader(out / "rerun" / f"{kind}.rrd").stream().filter(
+            content="/error/position", is_static=False, components="Scalars:scalars").to_chunks()
+        table = pa.concat_tables([pa.Table.from_batches([c.to_record_batch()]) for c in chunks])
+        norms = np.array([v[3] for v in table.column("Scalars:scalars").to_pylist()])
+        assert np.sqrt(np.mean(norms**2)) == pytest.approx(done[(len(done) - 1) // 2], rel=1e-9)
+
+
+@pytest.mark.parametrize("argv,fragments", [
+    (["--controllers", "pid,lqr"], ["argument --controllers: 'lqr': unknown controller"]),
+    (["--missions", "nowhere.yaml"], ["nowhere.yaml", "no such file"]),
+    (["--tune-budget", "30"], ["argument --tune-budget: 30: expected PARTICLESxITERATIONS"]),
+    (["--tune-budget", "0x5"], ["argument --tune-budget: 0x5: particles from 1"]),
+    (["--seeds", "0"], ["argument --seeds: 0"]),
+    (["--scenarios", "missing.yaml"], ["missing.yaml", "no such file"]),
+    (["--scenarios", "{bad}"], ["plant_scale"]),
+    (["--training", "{bad}"], ["plant_scale"]),
+])
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, fragments):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scenarios:\n  - name: x\n    plant_scale: 9\n")
+    out = tmp_path / "out"
+    status, err = rov_mav(["bench", *[a.replace("{bad}", str(bad)) for a in argv], "--missions", str(LINE),
+                           "--out", str(out)] if "--missions" not in argv else
+                          ["bench", *argv, "--out", str(out)], capsys)
+    assert status == 2
+    assert_one_line(err, "rov-mav bench: error: ", *fragments)
+    assert not out.exists() or not files_under(out)
