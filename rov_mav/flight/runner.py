@@ -579,8 +579,8 @@ class Runner:
         self._count_tick(state.t, latency)
         if t >= 0:
             self._log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
-        record = TickRecord(t=t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau, tau_hat=out.tau_hat,
-                            s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
+        record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
+                            tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
                             telemetry_age=age, latency=latency, control_rate=len(self._ticks),
                             battery_voltage=self.actuation.voltage, true_disturbance=self.true_disturbance)
         for sink in self.sinks:
