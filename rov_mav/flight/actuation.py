@@ -1,9 +1,9 @@
 """The runner's actuation: wrench -> 8 thrusts -> 8 PWMs, at the battery voltage, within the thrust cap.
 
-One allocator and one T200 map for the project (`rov_mav.model.thrusters`, scaled by the model's `thrust_scale`); this
-only keeps their limits current: each thruster's range is the T200's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also
-held in the PWM domain, at the highest voltage seen: the battery's voltage sags and recovers faster than the
-vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
+One allocator and one thruster map for the project (`rov_mav.model.thrusters`: the vehicle file's T200 data or
+quadratic law, scaled by its `thrust_scale`); this only keeps their limits current: each thruster's range is its map's
+at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
+thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
 """
 
@@ -34,7 +34,8 @@ class Actuation:
         self.directions = np.ones(len(vehicle.thruster_positions))
         self.voltage = float("nan")
         self.peak_voltage = 0.0
-        self.pwm_range = (1100.0, 1900.0)
+        self.pwm_range = (np.full(len(vehicle.thruster_positions), 1100.0),
+                          np.full(len(vehicle.thruster_positions), 1900.0))
         self.allocator: Allocator | None = None
         self.set_voltage(voltage)
 
@@ -42,8 +43,9 @@ class Actuation:
         if voltage > self.peak_voltage:
             self.peak_voltage = float(voltage)
             if self.max_thrust is not None:
-                self.pwm_range = (float(np.floor(self.t200.pwm(-self.max_thrust, self.peak_voltage))),
-                                  float(np.ceil(self.t200.pwm(self.max_thrust, self.peak_voltage))))
+                n = len(self.vehicle.thruster_positions)
+                self.pwm_range = (np.floor(self.t200.pwm(np.full(n, -self.max_thrust), self.peak_voltage)),
+                                  np.ceil(self.t200.pwm(np.full(n, self.max_thrust), self.peak_voltage)))
         if abs(voltage - self.voltage) < VOLTAGE_STEP:
             return
         self.voltage = float(voltage)
@@ -57,6 +59,11 @@ class Actuation:
         thrusts, info = self.allocator.thrusts(tau)
         pwm = np.clip(np.round(thrusts_to_pwms(thrusts, self.voltage, self.t200)), *self.pwm_range)
         return thrusts, NEUTRAL + self.directions * (pwm - NEUTRAL), info
+
+    def describe_range(self) -> str:
+        """The PWM range the cap allows: "1141-1859 us", or one range per thruster when they differ."""
+        ranges = [f"{lo:.0f}-{hi:.0f}" for lo, hi in zip(*self.pwm_range)]
+        return f"{ranges[0]} us" if len(set(ranges)) == 1 else f"({', '.join(ranges)}) us"
 
     def beyond_cap(self, outputs: np.ndarray) -> np.ndarray:
         """Which of the vehicle's reported outputs (8,) us lie beyond the PWM range the thrust cap allows."""

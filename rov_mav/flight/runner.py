@@ -604,9 +604,8 @@ class Runner:
                 crossed.append(f"tracking error {error:.2f} m > max_tracking_error {lim.max_tracking_error:g} m")
         servo = self.decoder.servo
         if lim.max_thrust is not None and servo is not None and self.actuation.beyond_cap(servo).any():
-            low, high = self.actuation.pwm_range
             crossed.append(f"thruster outputs {servo.astype(int).tolist()} us (SERVO_OUTPUT_RAW) beyond the "
-                           f"{low:.0f}-{high:.0f} us that max_thrust {lim.max_thrust:g} N allows")
+                           f"{self.actuation.describe_range()} that max_thrust {lim.max_thrust:g} N allows")
         if not crossed:
             return
         if not self.options.dry_run:
