@@ -104,6 +104,7 @@ class RunOptions:
     stale_periods: float = 3.0         # telemetry older than this many periods -> neutral
     link_timeout: float = 2.0          # vehicle s without telemetry -> abort
     approach_speed: float = 0.2        # m/s to the mission's start pose
+    velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
     limits: Limits = Limits()
 
 
@@ -144,7 +145,7 @@ class Runner:
         self.options = options
         self.sinks = sinks
         self.true_disturbance = true_disturbance
-        self.decoder = StateDecoder()
+        self.decoder = StateDecoder(options.velocity_blend)
         self.period = 1.0 / options.rate
         self.saved_functions: dict[str, tuple[float, int]] = {}
         self.changed_functions: list[str] = []
