@@ -145,3 +145,30 @@ def test_saved_vehicle_keeps_its_quadratic_law(sitl_vehicle, tmp_path):
     pwm = np.array([1650.0, 1350.0] * 4)
     assert np.allclose(thruster_curve(fitted).thrust(pwm, 12.0),
                        np.array([0.9, 1.1] * 4) * thruster_curve(sitl_vehicle).thrust(pwm, 12.0))
+
+
+@pytest.mark.parametrize("vehicle_file", [SITL_VEHICLE, default_vehicle_path()])
+def test_error_diffusion_averages_to_the_thrust_asked(vehicle_file):
+    """A wrench whose thrusts sit inside the dead band's edge step or between whole-us PWMs: rounded tick by tick
+    the vehicle gets the wrong average wrench (nothing at all in SITL's dead band), diffused it gets the asked one."""
+    vehicle = load_vehicle(vehicle_file)
+    tau = np.array([0.3, -0.2, 0.6, 0.01, -0.02, 0.015])          # a hover trim: tenths of a newton per thruster
+    matrix = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions)
+    curve = thruster_curve(vehicle)
+    averages = {}
+    for diffuse in (True, False):
+        act = Actuation(vehicle, max_thrust=40.0, voltage=12.6, diffuse=diffuse)
+        wrenches = [matrix @ curve.thrust(act.command(tau)[1], 12.6) for _ in range(500)]
+        averages[diffuse] = np.mean(wrenches, axis=0)
+    assert np.allclose(averages[True], tau, atol=[0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
+    assert not np.allclose(averages[False], tau, atol=[0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
+
+
+def test_error_diffusion_carries_nothing_past_saturation_or_a_reset(sitl_vehicle):
+    act = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6)
+    act.command(np.array([500.0, 0.0, 0.0, 0.0, 0.0, 0.0]))            # far beyond the cap: saturated
+    assert np.all(np.abs(act.carry) <= 1.0)
+    act.command(np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0]))
+    assert np.any(act.carry != 0.0)
+    act.reset()
+    assert act.command(np.zeros(6))[1].tolist() == [1500.0] * 8

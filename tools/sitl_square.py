@@ -8,7 +8,9 @@ records the EKF estimate and SITL's true state (SIM_STATE) throughout.
 Printed per run: against the EKF estimate (what the controller sees) on the reference, RMS and max 3D position
 error, heading RMS and max, pitch RMS; for rov-mav, tau_hat at the end; against SITL's truth, the RMS 3D error;
 and the estimator's floor over the flight (EKF minus truth: horizontal RMS, vertical mean offset and RMS about it,
-heading RMS); and the achieved speedup (vehicle s per wall s, mean and the slowest 10 s window).
+heading RMS); the achieved speedup (vehicle s per wall s, mean and the slowest 10 s window), the control rate, and
+the stalls (state samples more than 60 ms of vehicle time apart, and the longest gap): on a loaded machine the
+runner or SITL is sometimes descheduled, and the vehicle then keeps its last command.
 
     nice .venv/bin/python tools/sitl_square.py [--runs 2] [--speedup 2] [--guided 10] [--param NAME=VALUE ...]
                                                [--mission missions/square.yaml] [--out out/sitl] [-- RUN OPTIONS]
@@ -37,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 ROV_MAV = str(Path(sys.executable).with_name("rov-mav"))
 POSITION_WAIT = 150.0        # wall s for the EKF's first position (about 40 s of vehicle time)
 RUN_WAIT = 1800.0            # wall s for a whole flight
+LATE = 0.06                  # vehicle s between state samples that counts as a stall (3 periods at 50 Hz)
 
 
 def tracking(eta: np.ndarray, eta_d: np.ndarray) -> dict:
@@ -103,11 +106,13 @@ def fly_runner(sitl: Sitl, mission: Path, run_dir: Path, options: list[str]) -> 
     dof = ("x", "y", "z", "phi", "theta", "psi")
     loop = json.loads((run_dir / "metrics.json").read_text())["loop"]
     stale = re.search(r"telemetry went stale (\d+) time", output)
+    gaps = np.diff(ticks["vehicle_time"][flown])
     return {"t_vehicle": ticks["vehicle_time"][flown],
             "eta": np.column_stack([ticks[d][flown] for d in dof]),
             "eta_d": np.column_stack([ticks[f"{d}_d"][flown] for d in dof]),
             "tau_hat": [float(ticks[f"tau_hat_{w}"][-1]) for w in "XYZKMN"],
-            "rate_hz": loop["control_rate_hz"], "stale": int(stale.group(1)) if stale else 0}
+            "rate_hz": loop["control_rate_hz"], "stale": int(stale.group(1)) if stale else 0,
+            "late_ticks": int(np.sum(gaps > LATE)), "longest_gap_ms": float(gaps.max()) * 1000.0}
 
 
 def fly_guided(sitl: Sitl, mission_path: Path, rate: float) -> dict:
@@ -118,8 +123,10 @@ def fly_guided(sitl: Sitl, mission_path: Path, rate: float) -> dict:
     finally:
         flight.close()
     rows = [r for r in flight.log if r[1] >= 0.0]
-    return {"t_vehicle": np.array([r[0] for r in rows]), "eta": np.array([r[2] for r in rows]),
-            "eta_d": np.array([r[3] for r in rows]), "tau_hat": None, "rate_hz": rate, "stale": 0}
+    t = np.array([r[0] for r in rows])
+    return {"t_vehicle": t, "eta": np.array([r[2] for r in rows]), "eta_d": np.array([r[3] for r in rows]),
+            "tau_hat": None, "rate_hz": rate, "stale": 0, "late_ticks": int(np.sum(np.diff(t) > LATE)),
+            "longest_gap_ms": float(np.diff(t).max()) * 1000.0}
 
 
 def one_run(args, run_dir: Path, binary: Path) -> dict:
@@ -138,13 +145,13 @@ def one_run(args, run_dir: Path, binary: Path) -> dict:
             monitor.stop()
     t0, t1 = float(flight["t_vehicle"][0]), float(flight["t_vehicle"][-1])
     samples = monitor.samples()
-    np.savez(run_dir / "monitor.npz", **samples)
+    np.savez(run_dir / "monitor.npz", clock=np.array(monitor.clock), **samples)
     row = tracking(flight["eta"], flight["eta_d"])
     row |= truth_error(samples, flight["t_vehicle"], flight["eta_d"], t0, t1)
     row |= floor(samples, t0, t1)
     mean, slowest = monitor.speed(int(t0 * 1000))
-    row |= {"tau_hat": flight["tau_hat"], "rate_hz": flight["rate_hz"], "stale": flight["stale"],
-            "speedup": mean, "speedup_min": slowest, "voltage": monitor.voltage}
+    row |= {key: flight[key] for key in ("tau_hat", "rate_hz", "stale", "late_ticks", "longest_gap_ms")}
+    row |= {"speedup": mean, "speedup_min": slowest, "voltage": monitor.voltage}
     (run_dir / "row.json").write_text(json.dumps(row, indent=2) + "\n")
     return row
 
@@ -154,7 +161,8 @@ COLUMNS = [("RMS 3D cm", "rms_cm", "{:.2f}"), ("max 3D cm", "max_cm", "{:.2f}"),
            ("pitch RMS deg", "pitch_rms_deg", "{:.3f}"), ("truth RMS 3D cm", "truth_rms_cm", "{:.2f}"),
            ("EKF-truth horiz cm", "ekf_horizontal_rms_cm", "{:.2f}"),
            ("EKF-truth vert offset/RMS cm", None, None), ("EKF-truth hdg deg", "ekf_heading_rms_deg", "{:.2f}"),
-           ("speedup mean/min", None, None), ("rate Hz", "rate_hz", "{:.1f}")]
+           ("speedup mean/min", None, None), ("rate Hz", "rate_hz", "{:.1f}"),
+           ("gaps > 60 ms", "late_ticks", "{:.0f}"), ("longest gap ms", "longest_gap_ms", "{:.0f}")]
 
 
 def table_row(label: str, row: dict) -> str:

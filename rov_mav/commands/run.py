@@ -139,6 +139,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="below this bandwidth the velocity the law uses is the rate of the reported position, above "
                         "it the reported velocity (an estimator's position and velocity disagree by cm/s over "
                         "seconds); 0 uses the reported velocity as it is (default 1)")
+    p.add_argument("--pwm-rounding", choices=["diffuse", "nearest"], default="diffuse",
+                   help="whole-microsecond PWMs and thruster dead bands: carry what a tick's PWM could not give to the "
+                        "next tick, so thrust averages to what was asked (diffuse, default), or round each tick alone")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
@@ -262,8 +265,8 @@ def main(args: argparse.Namespace) -> int:
         rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
         if rerun is not None:
             sinks.append(rerun)
-        runner = Runner(session, mission, Controller(model, settings), Actuation(model, limits.max_thrust), options,
-                        sinks, true_disturbance)
+        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse")
+        runner = Runner(session, mission, Controller(model, settings), actuation, options, sinks, true_disturbance)
         result = runner.run()
     finally:
         for sink in sinks:

@@ -5,6 +5,12 @@ quadratic law, scaled by its `thrust_scale`); this only keeps their limits curre
 at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
 thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
+
+PWMs go out in whole microseconds, and no PWM gives a thrust inside a dead band's edge step (ArduPilot SITL's
+thrusters jump from 0 to 0.22 N at 1526 us). With `diffuse` (the default), each tick carries to the next what its
+PWM could not give (thrust asked minus the thrust the sent PWM gives: error diffusion), so the thrust averaged over
+ticks is the thrust asked: small moments and the heave trim are no longer rounded away or flipped on and off at the
+band's edge. Measured on SITL, that rounding was most of the pitch error.
 """
 
 from __future__ import annotations
@@ -22,13 +28,17 @@ VOLTAGE_STEP = 0.1        # V: rebuild the allocator when the battery moved this
 DEFAULT_VOLTAGE = 16.0    # V: until the vehicle reports one (a charged 4S pack under load)
 NEUTRAL = 1500            # us
 PWM_TOLERANCE = 2         # us: a reported output this far beyond the PWM cap counts as crossing it
+MAX_CARRY = 1.0           # N: the most thrust carried to the next tick (a rounding or dead-band step is far less)
 
 
 class Actuation:
     """`command(tau)` -> (thrusts (8,) N, PWMs (8,) us as sent, AllocationInfo)."""
 
-    def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE):
+    def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE,
+                 diffuse: bool = True):
         self.vehicle = vehicle
+        self.diffuse = diffuse
+        self.carry = np.zeros(len(vehicle.thruster_positions))   # N owed to the next tick
         self.max_thrust = max_thrust
         self.t200 = thruster_curve(vehicle)
         self.directions = np.ones(len(vehicle.thruster_positions))
@@ -57,8 +67,17 @@ class Actuation:
 
     def command(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, AllocationInfo]:
         thrusts, info = self.allocator.thrusts(tau)
-        pwm = np.clip(np.round(thrusts_to_pwms(thrusts, self.voltage, self.t200)), *self.pwm_range)
+        asked = thrusts + self.carry if self.diffuse else thrusts
+        low, high = self.pwm_range
+        pwm = np.clip(np.round(thrusts_to_pwms(asked, self.voltage, self.t200)), low, high)
+        if self.diffuse:
+            owed = asked - self.t200.thrust(pwm, self.voltage)
+            self.carry = np.where((pwm <= low) | (pwm >= high), 0.0, np.clip(owed, -MAX_CARRY, MAX_CARRY))
         return thrusts, NEUTRAL + self.directions * (pwm - NEUTRAL), info
+
+    def reset(self) -> None:
+        """Forget the carried thrust (after neutral was sent instead of a command)."""
+        self.carry[:] = 0.0
 
     def describe_range(self) -> str:
         """The PWM range the cap allows: "1141-1859 us", or one range per thruster when they differ."""

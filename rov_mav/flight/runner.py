@@ -326,6 +326,7 @@ class Runner:
         self.controller.reset()
         self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
         self.actuation.command(np.zeros(6))
+        self.actuation.reset()
         approach(eta, self.mission.start_pose, self.options.approach_speed)
         tracking_errors(eta[None], reference[None, :6])
 
@@ -621,6 +622,7 @@ class Runner:
 
     def _send_neutral(self) -> None:
         self.session.send_override([NEUTRAL] * CHANNELS)
+        self.actuation.reset()
         self.touched = True
 
     def _safe_stop(self, reason: str) -> list[str]:
