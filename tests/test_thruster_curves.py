@@ -157,7 +157,7 @@ def test_error_diffusion_averages_to_the_thrust_asked(vehicle_file):
     curve = thruster_curve(vehicle)
     averages = {}
     for diffuse in (True, False):
-        act = Actuation(vehicle, max_thrust=40.0, voltage=12.6, diffuse=diffuse)
+        act = Actuation(vehicle, max_thrust=40.0, voltage=12.6, diffuse=diffuse, pretension=False)
         wrenches = [matrix @ curve.thrust(act.command(tau)[1], 12.6) for _ in range(500)]
         averages[diffuse] = np.mean(wrenches, axis=0)
     assert np.allclose(averages[True], tau, atol=[0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
@@ -165,10 +165,25 @@ def test_error_diffusion_averages_to_the_thrust_asked(vehicle_file):
 
 
 def test_error_diffusion_carries_nothing_past_saturation_or_a_reset(sitl_vehicle):
-    act = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6)
+    act = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6, pretension=False)
     act.command(np.array([500.0, 0.0, 0.0, 0.0, 0.0, 0.0]))            # far beyond the cap: saturated
     assert np.all(np.abs(act.carry) <= 1.0)
     act.command(np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0]))
     assert np.any(act.carry != 0.0)
     act.reset()
     assert act.command(np.zeros(6))[1].tolist() == [1500.0] * 8
+
+
+def test_pretension_keeps_every_thruster_out_of_the_dead_band_with_the_same_wrench(sitl_vehicle):
+    """The hover trim: rounded alone, SITL's thrusters sit in or at their dead band; pretensioned, every PWM is at
+    least 5 us beyond it and the average wrench is still the one asked."""
+    tau = np.array([0.3, -0.2, 0.6, 0.01, -0.02, 0.015])
+    matrix = allocation_matrix(sitl_vehicle.thruster_positions, sitl_vehicle.thruster_directions)
+    curve = thruster_curve(sitl_vehicle)
+    act = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6)
+    pwms = np.array([act.command(tau)[1] for _ in range(200)])
+    assert np.all(np.abs(pwms - 1500) >= 25 + 5 - 1)                    # 1 us of rounding
+    wrench = np.mean([matrix @ curve.thrust(p, 12.6) for p in pwms], axis=0)
+    assert np.allclose(wrench, tau, atol=[0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
+    plain = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6, pretension=False).command(tau)[1]
+    assert np.any(np.abs(plain - 1500) <= 25)

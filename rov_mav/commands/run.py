@@ -142,6 +142,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pwm-rounding", choices=["diffuse", "nearest"], default="diffuse",
                    help="whole-microsecond PWMs and thruster dead bands: carry what a tick's PWM could not give to the "
                         "next tick, so thrust averages to what was asked (diffuse, default), or round each tick alone")
+    p.add_argument("--pretension", choices=["on", "off"], default="on",
+                   help="add thrust patterns with no net wrench so that every thruster works outside its dead band "
+                        "(on, default: small moments without thrusters switching on and off), or not")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
@@ -265,7 +268,8 @@ def main(args: argparse.Namespace) -> int:
         rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
         if rerun is not None:
             sinks.append(rerun)
-        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse")
+        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
+                              pretension=args.pretension == "on")
         runner = Runner(session, mission, Controller(model, settings), actuation, options, sinks, true_disturbance)
         result = runner.run()
     finally:
