@@ -3,7 +3,8 @@
 One allocator and one thruster map for the project (`rov_mav.model.thrusters`: the vehicle file's T200 data or
 quadratic law, scaled by its `thrust_scale`); this only keeps their limits current: each thruster's range is its map's
 at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
-thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it, and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
+thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it,
+and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
 
 PWMs go out in whole microseconds, and no PWM gives a thrust inside a dead band's edge step (ArduPilot SITL's

@@ -88,8 +88,8 @@ class ThrusterMap:
     The scales are numbers, or (n,) arrays for n thrusters that share the table's shape but not its size; with arrays,
     PWMs and thrusts are (..., n) and the maxima (n,).
 
-    The T200 data are sheets at a few voltages (10..20 V), each on the same PWM grid (1100..1900 us). Between grid points
-    and between sheets everything is linear interpolation; voltages outside the sheets are clamped to the nearest
+    The T200 data are sheets at a few voltages (10..20 V), each on the same PWM grid (1100..1900 us). Between grid
+    points and between sheets everything is linear interpolation; voltages outside the sheets are clamped to the nearest
     one and PWMs outside the grid to its ends.
 
     Monotonicity: the measured force is not strictly monotone in PWM everywhere (a few 0.03-0.13 N dips near full
