@@ -187,3 +187,28 @@ def test_pretension_keeps_every_thruster_out_of_the_dead_band_with_the_same_wren
     assert np.allclose(wrench, tau, atol=[0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
     plain = Actuation(sitl_vehicle, max_thrust=40.0, voltage=12.6, pretension=False).command(tau)[1]
     assert np.any(np.abs(plain - 1500) <= 25)
+
+
+def test_sitl_prior_is_sitls_measured_vehicle_with_the_bluerov2s_hydrodynamics(sitl_vehicle, vehicle):
+    """identify's prior for SITL: what a scale, a ruler and the thrusters' data give, the rest left to the fit."""
+    prior = load_vehicle(SITL_VEHICLE.with_name("ardusub_sitl_prior.yaml"))
+    for name in ("mass", "volume", "inertia_tensor", "center_of_gravity", "thruster_positions", "thruster_directions"):
+        assert np.allclose(getattr(prior, name), getattr(sitl_vehicle, name)), name
+    assert np.allclose(thruster_curve(prior).thrust(PWMS[:, None].repeat(8, axis=1), 12.6),
+                       thruster_curve(sitl_vehicle).thrust(PWMS[:, None].repeat(8, axis=1), 12.6))
+    for name in ("added_mass", "linear_damping", "quadratic_damping"):
+        assert np.allclose(getattr(prior, name), getattr(vehicle, name)), name
+
+
+@pytest.mark.parametrize("vehicle_file", [SITL_VEHICLE, default_vehicle_path()])
+def test_saturated_actuation_gives_way_on_translation_not_on_roll_and_pitch(vehicle_file):
+    """A surge and heave demand far beyond the cap with a little pitch: the thrust sent keeps the pitch and roll asked
+    (within 10 %), and what is lost is force."""
+    vehicle = load_vehicle(vehicle_file)
+    act = Actuation(vehicle, max_thrust=40.0, voltage=12.6, diffuse=False, pretension=False)
+    tau = np.array([300.0, 80.0, 250.0, 0.0, 1.5, 0.2])
+    thrusts, _, info = act.command(tau)
+    assert info.saturated
+    achieved = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions) @ thrusts
+    assert abs(achieved[3]) < 0.03 and achieved[4] == pytest.approx(1.5, rel=0.1)   # all axes alike: 0 or 8.4
+    assert achieved[0] < 0.9 * tau[0]

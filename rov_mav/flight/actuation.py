@@ -35,6 +35,10 @@ NEUTRAL = 1500            # us
 PWM_TOLERANCE = 2         # us: a reported output this far beyond the PWM cap counts as crossing it
 MAX_CARRY = 1.0           # N: the most thrust carried to the next tick (a rounding or dead-band step is far less)
 EDGE_MARGIN = 5.0         # us beyond a dead band's edge: the smallest thrust pretension keeps each thruster at
+# Saturated allocation gives way on translation before roll and pitch: 1 N m of roll or pitch not given counts as
+# 100 N of force. A vehicle that keeps its attitude keeps its thrusters pointing where the allocation assumes; with
+# all axes weighted alike, a saturated surge demand on SITL pitched the vehicle 46 deg within a second.
+ALLOCATION_WEIGHTS = np.array([1.0, 1.0, 1.0, 100.0, 100.0, 1.0])
 
 
 class Actuation:
@@ -67,7 +71,8 @@ class Actuation:
         if abs(voltage - self.voltage) < VOLTAGE_STEP:
             return
         self.voltage = float(voltage)
-        self.allocator = Allocator.for_vehicle(self.vehicle, voltage, self.t200, max_thrust=self.max_thrust)
+        self.allocator = Allocator.for_vehicle(self.vehicle, voltage, self.t200, weights=ALLOCATION_WEIGHTS,
+                                               max_thrust=self.max_thrust)
         if self._use_pretension:
             self.pretension = Pretension(self.allocator.matrix, self._edge_thrust(voltage))
 
