@@ -134,7 +134,7 @@ def _location(loc: tuple[Any, ...]) -> str:
     for item in loc:
         if isinstance(item, int):
             parts.append(f"[{item}]")
-        elif item in ("function-after", "function-before", "function-plain") or str(item).startswith("function-"):
+        elif str(item).startswith(("function-", "constrained-")):
             continue
         else:
             parts.append(("." if parts else "") + str(item))

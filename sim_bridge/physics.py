@@ -1,5 +1,6 @@
-"""The simulated vehicle's hardware: 8 PWM -> T200 thrust at the battery voltage -> first-order lag -> body wrench
-tau = B f -> the shared 6-DOF plant; the battery is drained by the thrusters' current.
+"""The simulated vehicle's hardware: 8 PWM -> thrust at the battery voltage (the vehicle file's thruster map: the T200
+data, or a quadratic law) -> first-order lag -> body wrench tau = B f -> the shared 6-DOF plant; the battery is
+drained by the thrusters' current.
 """
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ import math
 
 import numpy as np
 
-from rov_mav.model.thrusters import T200, allocation_matrix
+from rov_mav.model.thrusters import ThrusterMap, allocation_matrix
 from rov_mav.model.vehicle import Vehicle
 from sim_bridge.battery import Battery
 
@@ -19,7 +20,7 @@ NO_PULSE_BELOW = 800            # us: an output this low (0 = unassigned) sends 
 class Physics:
     """Advances `plant` (the shared rov_mav Plant) by fixed steps of `h` s under 8 thruster PWMs."""
 
-    def __init__(self, vehicle: Vehicle, plant, battery: Battery, t200: T200, h: float):
+    def __init__(self, vehicle: Vehicle, plant, battery: Battery, t200: ThrusterMap, h: float):
         self.plant = plant
         self.battery = battery
         self.t200 = t200

@@ -1,96 +1,36 @@
-"""ArduPilot's own ArduSub SITL for end-to-end tests, found through ARDUSUB_SITL (the binary; its defaults file
-sub-6dof.parm next to it, or ARDUSUB_SITL_DEFAULTS). Each instance gets a scratch directory, a free instance number
-and is ended by its PID (with SIGKILL if it ignores SIGTERM, which a stuck SITL can)."""
+"""ArduPilot's own ArduSub SITL for end-to-end tests, found through ARDUSUB_SITL (the launcher is
+`rov_mav.sitl`, shared with tools/); without it the tests that need it are skipped with the reason."""
 
 from __future__ import annotations
 
-import os
-import signal
-import socket
-import subprocess
 import time
 from pathlib import Path
 
 import pytest
 
-SITL_ENV = "ARDUSUB_SITL"
+from rov_mav import sitl as launcher
+
 SPEEDUP = 4.0                 # a 2-core machine shared with the runner holds this
-BOOT_WAIT = 60.0              # wall s for the first heartbeat
-HOME = "33.810313,-118.393867,0,185"
+BOOT_WAIT = launcher.BOOT_WAIT
 
 
 def sitl_binary() -> Path:
     """The SITL binary, or skip with the reason (CI sets ARDUSUB_SITL, so it runs these)."""
-    path = os.environ.get(SITL_ENV)
-    if not path:
-        pytest.skip(f"{SITL_ENV} is not set: point it at an ArduSub SITL binary (e.g. ../shared/sitl/ardusub) to run "
-                    "the tests against real ArduSub")
-    binary = Path(path).resolve()
-    if not os.access(binary, os.X_OK):
-        pytest.fail(f"{SITL_ENV}={path} is not an executable file")
+    try:
+        binary = launcher.binary_from_environment()
+    except launcher.SitlError as exc:
+        pytest.fail(str(exc))
+    if binary is None:
+        pytest.skip(f"{launcher.SITL_ENV} is not set: point it at an ArduSub SITL binary (e.g. ../shared/sitl/ardusub) "
+                    "to run the tests against real ArduSub")
     return binary
 
 
-def _free_instance() -> int:
-    """An instance number N whose SERIAL0..2 ports (5760+10N, 5762+10N, 5763+10N) are free."""
-    for n in range(20, 60):
-        try:
-            for offset in (0, 2, 3):
-                with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-                    s.bind(("127.0.0.1", 5760 + 10 * n + offset))
-            return n
-        except OSError:
-            continue
-    raise RuntimeError("no free SITL instance number")
-
-
-class Sitl:
-    """ArduSub SITL (vectored_6dof) in `workdir`: SERIAL0 on `serial0` (default TCP 5760+10N), SERIAL1 on TCP
-    `port1`. Wiped parameters at every boot."""
+class Sitl(launcher.Sitl):
+    """The launcher on the binary ARDUSUB_SITL names, at the tests' speedup."""
 
     def __init__(self, workdir: Path, serial0: str | None = None, speedup: float = SPEEDUP):
-        self.binary = sitl_binary()
-        defaults = Path(os.environ.get("ARDUSUB_SITL_DEFAULTS", self.binary.with_name("sub-6dof.parm")))
-        self.instance = _free_instance()
-        self.port0 = 5760 + 10 * self.instance
-        self.port1 = self.port0 + 2
-        self.speedup = speedup
-        self.workdir = workdir
-        self.args = [str(self.binary), "--model", "vectored_6dof", "--defaults", str(defaults), "--home", HOME,
-                     "-I", str(self.instance), "-w", "--speedup", f"{speedup:g}"]
-        if serial0:
-            self.args += ["--serial0", serial0]
-        self.proc: subprocess.Popen | None = None
-
-    def __enter__(self) -> "Sitl":
-        self.workdir.mkdir(parents=True, exist_ok=True)
-        with open(self.workdir / "sitl.out", "w") as out:
-            self.proc = subprocess.Popen(self.args, cwd=self.workdir, stdout=out, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, start_new_session=True)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-
-    @property
-    def target(self) -> str:
-        return f"tcp:127.0.0.1:{self.port0}"
-
-    def wait_for_port(self, port: int) -> None:
-        deadline = time.monotonic() + BOOT_WAIT
-        while time.monotonic() < deadline:
-            with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-                if s.connect_ex(("127.0.0.1", port)) == 0:
-                    return
-            assert self.proc.poll() is None, (self.workdir / "sitl.out").read_text()
-            time.sleep(0.2)
-        raise AssertionError(f"SITL never opened port {port}")
+        super().__init__(sitl_binary(), workdir, speedup, serial0=serial0)
 
 
 class Checker:

@@ -20,7 +20,7 @@ def tick_records(trace: Trace, vehicle: Vehicle, t0: float = 0.0) -> list[TickRe
     """One TickRecord per sample of `trace`, as the runner would build them, starting at vehicle time t0."""
     c = trace_columns(trace, vehicle)
     n = len(c.t)
-    return [TickRecord(t=t0 + c.t[k], eta=c.eta[k], nu=trace.nu[k], reference=c.reference[k], tau=c.tau[k],
+    return [TickRecord(t=t0 + c.t[k], vehicle_time=t0 + c.t[k], eta=c.eta[k], nu=trace.nu[k], reference=c.reference[k], tau=c.tau[k],
                        tau_hat=c.tau_hat[k], s=c.s[k], gamma=c.gamma[k], thrusts=c.thrusts[k], pwm=c.pwm[k],
                        progress=k / (n - 1), telemetry_age=0.004 + 1e-5 * k, latency=0.001, control_rate=50.0,
                        battery_voltage=16.0 - 1e-3 * k, true_disturbance=trace.true_disturbance)

@@ -98,7 +98,8 @@ def fly_in_process(log_dir: Path, noise=(0.0, 0.0, 0.0, 0.0), rate: float = 50.0
         out = controller.step(eta, nu, ref, dt)
         actuation.set_voltage(physics.battery.voltage)
         thrusts, pwm, _ = actuation.command(out.tau)
-        log.log_tick(TickRecord(t=k * dt, eta=eta, nu=nu, reference=ref, tau=out.tau, tau_hat=out.tau_hat, s=out.s,
+        log.log_tick(TickRecord(t=k * dt, vehicle_time=k * dt, eta=eta, nu=nu, reference=ref, tau=out.tau,
+                                tau_hat=out.tau_hat, s=out.s,
                                 gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=mission.progress(k * dt),
                                 telemetry_age=0.0, latency=0.0, control_rate=rate,
                                 battery_voltage=actuation.voltage))
@@ -313,7 +314,7 @@ def _still(target: Path) -> Path:
     """60 s of a vehicle holding still at neutral: nothing moves, nothing to fit."""
     log = RunLog(target)
     for k in range(3000):
-        log.log_tick(TickRecord(t=k * 0.02, eta=np.array([0, 0, 1.0, 0, 0, 0]), nu=np.zeros(6),
+        log.log_tick(TickRecord(t=k * 0.02, vehicle_time=k * 0.02, eta=np.array([0, 0, 1.0, 0, 0, 0]), nu=np.zeros(6),
                                 reference=np.r_[0, 0, 1.0, np.zeros(15)], tau=np.zeros(6), tau_hat=np.zeros(6),
                                 s=np.zeros(6), gamma=np.zeros(6), thrusts=np.zeros(8), pwm=np.full(8, 1500.0),
                                 progress=0.0, telemetry_age=0.0, latency=0.0, control_rate=50.0,

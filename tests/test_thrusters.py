@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rov_mav.model.thrusters import (
-    T200,
     Allocator,
+    ThrusterMap,
     allocate,
     allocation_matrix,
     load_t200,
@@ -247,9 +247,9 @@ def test_eight_thruster_helpers(t200):
 def test_bad_data_rejected():
     pwm = np.array([1400.0, 1500.0, 1600.0])
     with pytest.raises(ValueError):   # forward force below 1500
-        T200([12.0, 16.0], pwm, [[1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]], np.zeros((2, 3)))
+        ThrusterMap([12.0, 16.0], pwm, [[1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]], np.zeros((2, 3)))
     with pytest.raises(ValueError):   # no dead band at 1500
-        T200([12.0, 16.0], pwm, [[-1.0, 0.5, 1.0], [-1.0, 0.0, 1.0]], np.zeros((2, 3)))
+        ThrusterMap([12.0, 16.0], pwm, [[-1.0, 0.5, 1.0], [-1.0, 0.0, 1.0]], np.zeros((2, 3)))
 
 
 # ---- allocator -----------------------------------------------------------------------------------------------

@@ -35,7 +35,7 @@ def records(n: int) -> list[TickRecord]:
     mission, vehicle = load_mission(ROOT / "missions" / "square.yaml"), load_vehicle()
     trace = simulate(mission, load_settings("fuzzy"), vehicle, duration=n * PERIOD, dt=PERIOD)
     c = telemetry.trace_columns(trace, vehicle)
-    return [TickRecord(t=c.t[k], eta=c.eta[k], nu=trace.nu[k], reference=c.reference[k], tau=c.tau[k],
+    return [TickRecord(t=c.t[k], vehicle_time=c.t[k], eta=c.eta[k], nu=trace.nu[k], reference=c.reference[k], tau=c.tau[k],
                        tau_hat=c.tau_hat[k], s=c.s[k], gamma=c.gamma[k], thrusts=c.thrusts[k], pwm=c.pwm[k],
                        progress=mission.progress(c.t[k]), telemetry_age=0.005, latency=0.001, control_rate=50.0,
                        battery_voltage=16.0, true_disturbance=trace.true_disturbance) for k in range(n)]

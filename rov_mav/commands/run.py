@@ -40,6 +40,7 @@ from rov_mav.mission.missions import MAX_SPEED
 MAX_RATE = 400.0              # Hz: ArduSub's main loop; no telemetry comes faster
 MAX_LINK_TIMEOUT = 60.0       # vehicle s: flying blind longer than this is not a setting
 MAX_BAUD = 10_000_000
+MAX_VELOCITY_BLEND = 50.0     # rad/s: the filter is stepped at the control rate; beyond this it is no filter
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -134,6 +135,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
     p.add_argument("--approach-speed", type=number(0.0, MAX_SPEED, low_open=True), default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
+    p.add_argument("--velocity-blend", type=number(0.0, MAX_VELOCITY_BLEND), default=1.0, metavar="RAD_S",
+                   help="below this bandwidth the velocity the law uses is the rate of the reported position, above "
+                        "it the reported velocity (an estimator's position and velocity disagree by cm/s over "
+                        "seconds); 0 uses the reported velocity as it is (default 1)")
+    p.add_argument("--pwm-rounding", choices=["diffuse", "nearest"], default="diffuse",
+                   help="whole-microsecond PWMs and thruster dead bands: carry what a tick's PWM could not give to the "
+                        "next tick, so thrust averages to what was asked (diffuse, default), or round each tick alone")
+    p.add_argument("--pretension", choices=["on", "off"], default="on",
+                   help="add thrust patterns with no net wrench so that every thruster works outside its dead band "
+                        "(on, default: small moments without thrusters switching on and off), or not")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
@@ -241,7 +252,8 @@ def main(args: argparse.Namespace) -> int:
     default_recording = Path(f"out/run-{mission.name}/run.rrd")
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
-                         link_timeout=args.link_timeout, approach_speed=args.approach_speed, limits=limits)
+                         link_timeout=args.link_timeout, approach_speed=args.approach_speed,
+                         velocity_blend=args.velocity_blend, limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
         if args.log:
@@ -256,8 +268,9 @@ def main(args: argparse.Namespace) -> int:
         rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
         if rerun is not None:
             sinks.append(rerun)
-        runner = Runner(session, mission, Controller(model, settings), Actuation(model, limits.max_thrust), options,
-                        sinks, true_disturbance)
+        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
+                              pretension=args.pretension == "on")
+        runner = Runner(session, mission, Controller(model, settings), actuation, options, sinks, true_disturbance)
         result = runner.run()
     finally:
         for sink in sinks:

@@ -25,7 +25,7 @@ from rov_mav.flight.tick import TickRecord
 DOF = ("x", "y", "z", "phi", "theta", "psi")
 BODY = ("u", "v", "w", "p", "q", "r")
 WRENCH = ("X", "Y", "Z", "K", "M", "N")
-COLUMNS = (["t", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF]
+COLUMNS = (["t", "vehicle_time", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF]
            + [f"{d}_ddot_d" for d in DOF] + [f"tau_{w}" for w in WRENCH] + [f"tau_hat_{w}" for w in WRENCH]
            + [f"s_{d}" for d in DOF] + [f"gamma_{d}" for d in DOF] + [f"thrust_{i}" for i in range(1, 9)]
            + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage"])
@@ -46,7 +46,7 @@ def parse_mission_start(text: str) -> float | None:
 
 
 def tick_row(r: TickRecord) -> list[str]:
-    values = [r.t, r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
+    values = [r.t, r.vehicle_time, r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
               *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage]
     return [f"{float(v):.9g}" for v in values]
 

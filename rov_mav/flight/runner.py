@@ -104,6 +104,7 @@ class RunOptions:
     stale_periods: float = 3.0         # telemetry older than this many periods -> neutral
     link_timeout: float = 2.0          # vehicle s without telemetry -> abort
     approach_speed: float = 0.2        # m/s to the mission's start pose
+    velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
     limits: Limits = Limits()
 
 
@@ -144,7 +145,7 @@ class Runner:
         self.options = options
         self.sinks = sinks
         self.true_disturbance = true_disturbance
-        self.decoder = StateDecoder()
+        self.decoder = StateDecoder(options.velocity_blend)
         self.period = 1.0 / options.rate
         self.saved_functions: dict[str, tuple[float, int]] = {}
         self.changed_functions: list[str] = []
@@ -325,6 +326,7 @@ class Runner:
         self.controller.reset()
         self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
         self.actuation.command(np.zeros(6))
+        self.actuation.reset()
         approach(eta, self.mission.start_pose, self.options.approach_speed)
         tracking_errors(eta[None], reference[None, :6])
 
@@ -579,8 +581,8 @@ class Runner:
         self._count_tick(state.t, latency)
         if t >= 0:
             self._log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
-        record = TickRecord(t=t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau, tau_hat=out.tau_hat,
-                            s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
+        record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
+                            tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
                             telemetry_age=age, latency=latency, control_rate=len(self._ticks),
                             battery_voltage=self.actuation.voltage, true_disturbance=self.true_disturbance)
         for sink in self.sinks:
@@ -604,9 +606,8 @@ class Runner:
                 crossed.append(f"tracking error {error:.2f} m > max_tracking_error {lim.max_tracking_error:g} m")
         servo = self.decoder.servo
         if lim.max_thrust is not None and servo is not None and self.actuation.beyond_cap(servo).any():
-            low, high = self.actuation.pwm_range
             crossed.append(f"thruster outputs {servo.astype(int).tolist()} us (SERVO_OUTPUT_RAW) beyond the "
-                           f"{low:.0f}-{high:.0f} us that max_thrust {lim.max_thrust:g} N allows")
+                           f"{self.actuation.describe_range()} that max_thrust {lim.max_thrust:g} N allows")
         if not crossed:
             return
         if not self.options.dry_run:
@@ -621,6 +622,7 @@ class Runner:
 
     def _send_neutral(self) -> None:
         self.session.send_override([NEUTRAL] * CHANNELS)
+        self.actuation.reset()
         self.touched = True
 
     def _safe_stop(self, reason: str) -> list[str]:

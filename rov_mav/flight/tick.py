@@ -12,6 +12,7 @@ class TickRecord:
     """Everything worth logging about one tick of the control loop (vehicle time t, SI units, NED/FRD)."""
 
     t: float                        # s, vehicle time since the mission started
+    vehicle_time: float             # s, the state's time on the vehicle's clock (time_boot_ms), to align other logs
     eta: np.ndarray                 # (6,) measured pose
     nu: np.ndarray                  # (6,) measured body velocity
     reference: np.ndarray           # (18,) eta_d, eta_dot_d, eta_ddot_d

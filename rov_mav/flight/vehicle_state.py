@@ -1,9 +1,10 @@
 """The state the law needs, (t, eta, nu), decoded from ArduSub's telemetry on the vehicle's own clock.
 
 eta = [x, y, z (LOCAL_POSITION_NED), roll, pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
-rotated into the body frame, and ATTITUDE's body rates. A sample is complete once both messages arrived since the
-last one with time_boot_ms within half a stream period of each other: a message whose partner was lost is dropped, so
-one lost packet does not pair every later position with the next period's attitude. The sample's time is the newer of
+(blended with the position's rate below `velocity_blend` rad/s: `VelocityBlend`) rotated into the body frame, and
+ATTITUDE's body rates. A sample is complete once both messages arrived since the last one with time_boot_ms within
+half a stream period of each other: a message whose partner was lost is dropped, so one lost packet does not pair
+every later position with the next period's attitude. The sample's time is the newer of
 their time_boot_ms, so dt is vehicle time whatever the vehicle's speedup.
 """
 
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rov_mav.flight.velocity_blend import VelocityBlend
 from rov_mav.model.dynamics import rotation
 
 STATE_MESSAGES = ("ATTITUDE", "LOCAL_POSITION_NED")
@@ -30,7 +32,8 @@ class State:
 class StateDecoder:
     """Feed it the vehicle's messages; `update` says when a new state is complete, `state` decodes it."""
 
-    def __init__(self):
+    def __init__(self, velocity_blend: float = 0.0):
+        self.blend = VelocityBlend(velocity_blend)
         self.attitude = None
         self.position = None
         self.voltage: float | None = None     # V, from SYS_STATUS
@@ -79,7 +82,9 @@ class StateDecoder:
     def state(self, received: float) -> State:
         """The latest state, its completing message received at wall time `received` (both must have arrived)."""
         a, p = self.attitude, self.position
+        t = max(a.time_boot_ms, p.time_boot_ms) / 1000.0
         eta = np.array([p.x, p.y, p.z, a.roll, a.pitch, a.yaw], dtype=float)
-        v_body = rotation(eta).T @ np.array([p.vx, p.vy, p.vz])
+        v_ned = self.blend.update(t, eta[:3], np.array([p.vx, p.vy, p.vz], dtype=float))
+        v_body = rotation(eta).T @ v_ned
         nu = np.array([*v_body, a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)
-        return State(max(a.time_boot_ms, p.time_boot_ms) / 1000.0, eta, nu, received)
+        return State(t, eta, nu, received)

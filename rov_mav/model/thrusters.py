@@ -1,7 +1,9 @@
-"""Thrusters: the 6x8 allocation matrix, the T200 PWM <-> thrust map, and wrench <-> thrust allocation.
+"""Thrusters: the 6x8 allocation matrix, the PWM <-> thrust map, and wrench <-> thrust allocation.
 
-Used in both directions: the simulator bridge turns 8 PWMs into thrusts (`T200.thrust`) and a body wrench
-(`Allocator.wrench`); the controller turns a wrench into thrusts (`Allocator.thrusts`) and 8 PWMs (`T200.pwm`).
+One force law for every thruster the project flies (`ThrusterMap`): a table of force against PWM and voltage (the
+T200's measured data, or a quadratic law sampled on a 1 us grid), times a scale per direction and thruster.
+Used in both directions: the simulator bridge turns 8 PWMs into thrusts (`ThrusterMap.thrust`) and a body wrench
+(`Allocator.wrench`); the controller turns a wrench into thrusts (`Allocator.thrusts`) and 8 PWMs (`ThrusterMap.pwm`).
 
 Conventions: body frame FRD (x forward, y starboard, z down), SI units (N, N m, V, A), PWM in microseconds.
 A wrench is [X, Y, Z, K, M, N] (force, then moment about the body origin). Thrust f_i > 0 means PWM > 1500 and
@@ -18,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from rov_mav.model.vehicle import Vehicle
+from rov_mav.model.vehicle import QuadraticCurve, Vehicle
 
 T200_DATA_FILE = "t200_performance.csv"
 NEUTRAL_PWM = 1500.0
@@ -36,12 +38,12 @@ def allocation_matrix(positions: np.ndarray, directions: np.ndarray) -> np.ndarr
 
 
 # --------------------------------------------------------------------------------------------------------------
-# T200 thruster map
+# Thruster map (T200 data or a quadratic law)
 
 
 @dataclass(frozen=True)
 class _Curve:
-    """The T200 at one supply voltage, on the data's PWM grid; built (and cached) by `T200._build_curve`.
+    """The table at one supply voltage, on its PWM grid, unscaled; built (and cached) by `ThrusterMap._build_curve`.
 
     force: (P,) N, monotone non-decreasing in PWM; current: (P,) A; dead_band: (low, high) PWM, force == 0 there.
     forward_thrust/forward_pwm: (L,) non-decreasing thrust from 0 at the upper edge up to 1900 us, and its PWMs;
@@ -79,11 +81,15 @@ def _monotone(force: np.ndarray, pwm: np.ndarray) -> np.ndarray:
     return fixed
 
 
-class T200:
-    """Blue Robotics T200 thrust and current against PWM and supply voltage, from its measured data.
+class ThrusterMap:
+    """Thrust and current against PWM and supply voltage, from a table (`load_t200`: Blue Robotics' T200 data;
+    `quadratic`: ArduPilot SITL's law), the thrust times `forward_scale` above neutral and `reverse_scale` below.
 
-    The data are sheets at a few voltages (10..20 V), each on the same PWM grid (1100..1900 us). Between grid points
-    and between sheets everything is linear interpolation; voltages outside the sheets are clamped to the nearest
+    The scales are numbers, or (n,) arrays for n thrusters that share the table's shape but not its size; with arrays,
+    PWMs and thrusts are (..., n) and the maxima (n,).
+
+    The T200 data are sheets at a few voltages (10..20 V), each on the same PWM grid (1100..1900 us). Between grid
+    points and between sheets everything is linear interpolation; voltages outside the sheets are clamped to the nearest
     one and PWMs outside the grid to its ends.
 
     Monotonicity: the measured force is not strictly monotone in PWM everywhere (a few 0.03-0.13 N dips near full
@@ -98,8 +104,12 @@ class T200:
     to a PWM at or just outside the dead band's edge, never inside it.
     """
 
-    def __init__(self, voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray, current: np.ndarray):
-        """voltages: (V,) V, increasing; pwm: (P,) us, increasing, contains 1500; force: (V, P) N; current: (V, P) A."""
+    def __init__(self, voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray, current: np.ndarray,
+                 forward_scale: float | np.ndarray = 1.0, reverse_scale: float | np.ndarray = 1.0):
+        """voltages: (V,) V, increasing; pwm: (P,) us, increasing, contains 1500; force: (V, P) N; current: (V, P) A;
+        scales: > 0, numbers or (n,)."""
+        self.forward_scale = _positive(forward_scale)
+        self.reverse_scale = _positive(reverse_scale)
         self.voltages = np.asarray(voltages, dtype=float)
         self.pwm_grid = np.asarray(pwm, dtype=float)
         force = np.asarray(force, dtype=float)
@@ -109,7 +119,7 @@ class T200:
         self._curve = functools.lru_cache(maxsize=64)(self._build_curve)
 
     @classmethod
-    def from_csv(cls, path: str | Path) -> "T200":
+    def from_csv(cls, path: str | Path) -> "ThrusterMap":
         """Read a CSV with columns voltage_v, pwm_us, current_a, force_n (others ignored)."""
         table = np.genfromtxt(path, delimiter=",", names=True)
         voltages = np.unique(table["voltage_v"])
@@ -125,11 +135,29 @@ class T200:
             np.array([s["current_a"] for s in sheets]),
         )
 
+    @classmethod
+    def quadratic(cls, curve: QuadraticCurve) -> "ThrusterMap":
+        """ArduPilot SITL's submarine thrusters (libraries/SITL/SIM_Submarine.cpp, Submarine::calculate_forces):
+        k sign(o) o^2 with o = (pwm - 1500) / full_scale, nothing within the dead band, whatever the voltage; k per
+        thruster and direction. The table samples the law at every whole microsecond (exact where a vehicle is
+        sent PWMs; 0.0001 N of interpolation between), so a non-zero thrust below the first live microsecond's
+        maps between the band's edge and it, and rounding with error diffusion averages to it."""
+        half = curve.full_scale
+        grid = np.unique(np.concatenate([np.arange(np.ceil(NEUTRAL_PWM - half), np.floor(NEUTRAL_PWM + half) + 1),
+                                         [NEUTRAL_PWM - half, NEUTRAL_PWM + half]]))
+        o = (grid - NEUTRAL_PWM) / half
+        low, high = curve.dead_band
+        force = np.where((grid < low) | (grid > high), np.sign(o) * o * o, 0.0)
+        sheets = np.array([force, force])          # two equal sheets: the same law at every voltage
+        return cls(np.array([0.0, 1.0]), grid, sheets, np.zeros_like(sheets), curve.max_forward, curve.max_reverse)
+
     # -- public map ------------------------------------------------------------------------------------------
 
     def thrust(self, pwm: np.ndarray | float, voltage: float) -> np.ndarray:
         """Thrust in N (negative = reverse) for PWM(s) in us of any shape, at a battery voltage in V."""
-        return np.interp(pwm, self.pwm_grid, self._curve(float(voltage)).force)
+        pwm = np.asarray(pwm, dtype=float)
+        force = np.interp(pwm, self.pwm_grid, self._curve(float(voltage)).force)
+        return force * np.where(pwm > NEUTRAL_PWM, self.forward_scale, self.reverse_scale)
 
     def pwm(self, thrust: np.ndarray | float, voltage: float) -> np.ndarray:
         """PWM in us (float, within [1100, 1900]) giving thrust(s) in N of any shape, at a voltage in V.
@@ -139,33 +167,32 @@ class T200:
         if not np.all(np.isfinite(t)):
             raise ValueError("thrust must be finite")
         c = self._curve(float(voltage))
-        forward = _invert_branch(t, c.forward_thrust, c.forward_pwm)
-        reverse = _invert_branch(-t, c.reverse_thrust, c.reverse_pwm)
+        forward = _invert_branch(t / self.forward_scale, c.forward_thrust, c.forward_pwm)
+        reverse = _invert_branch(-t / self.reverse_scale, c.reverse_thrust, c.reverse_pwm)
         return np.where(t > 0, forward, np.where(t < 0, reverse, NEUTRAL_PWM))
 
     def current(self, pwm: np.ndarray | float, voltage: float) -> np.ndarray:
         """Current drawn in A at PWM(s) in us of any shape and a voltage in V (0 in the dead band)."""
         return np.interp(pwm, self.pwm_grid, self._curve(float(voltage)).current)
 
-    def max_forward(self, voltage: float) -> float:
-        """Largest forward thrust in N (at 1900 us) at a voltage in V."""
-        return float(self._curve(float(voltage)).force[-1])
+    def max_forward(self, voltage: float) -> float | np.ndarray:
+        """Largest forward thrust in N (at the grid's top, 1900 us) at a voltage in V; (n,) with per-thruster scales."""
+        return float(self._curve(float(voltage)).force[-1]) * self.forward_scale
 
-    def max_reverse(self, voltage: float) -> float:
-        """Largest reverse thrust magnitude in N (positive; at 1100 us) at a voltage in V: ~78 % of forward."""
-        return float(-self._curve(float(voltage)).force[0])
+    def max_reverse(self, voltage: float) -> float | np.ndarray:
+        """Largest reverse thrust magnitude in N (positive; at the grid's bottom) at a voltage in V: ~78 % of forward
+        for the T200."""
+        return float(-self._curve(float(voltage)).force[0]) * self.reverse_scale
 
     def dead_band(self, voltage: float) -> tuple[float, float]:
         """(low, high) PWM in us: the outermost grid PWMs around 1500 where the thrust is exactly 0."""
         return self._curve(float(voltage)).dead_band
 
-    def scaled(self, forward: float, reverse: float) -> "T200":
-        """The same thruster with every forward thrust multiplied by `forward` and every reverse one by `reverse`
-        (> 0; current unchanged): a vehicle whose thrusters push less (or more) than the bench data."""
-        if not (forward > 0 and reverse > 0):
-            raise ValueError(f"thrust scales must be positive, got {forward:g} and {reverse:g}")
-        scale = np.where(self.pwm_grid > NEUTRAL_PWM, forward, reverse)
-        return T200(self.voltages, self.pwm_grid, self.force_table * scale, self.current_table)
+    def scaled(self, forward: float | np.ndarray, reverse: float | np.ndarray) -> "ThrusterMap":
+        """The same thrusters with every forward thrust multiplied by `forward` and every reverse one by `reverse`
+        (> 0, numbers or per thruster; current unchanged): thrusters that push less (or more) than the table."""
+        return ThrusterMap(self.voltages, self.pwm_grid, self.force_table, self.current_table,
+                           _positive(forward) * self.forward_scale, _positive(reverse) * self.reverse_scale)
 
     # -- construction ----------------------------------------------------------------------------------------
 
@@ -193,6 +220,14 @@ class T200:
         )
 
 
+def _positive(scale: float | np.ndarray) -> float | np.ndarray:
+    """A thrust scale as a float, or a float array for one per thruster; ValueError unless all > 0 and finite."""
+    array = np.asarray(scale, dtype=float)
+    if not (np.all(array > 0) and np.all(np.isfinite(array))):
+        raise ValueError(f"thrust scales must be positive, got {array}")
+    return float(array) if array.ndim == 0 else array
+
+
 def _check_sheets(voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray) -> None:
     """Raise ValueError unless every sheet is reverse below, zero in one band around, and forward above 1500 us."""
     if len(voltages) < 2 or np.any(np.diff(voltages) <= 0):
@@ -211,32 +246,35 @@ def _check_sheets(voltages: np.ndarray, pwm: np.ndarray, force: np.ndarray) -> N
 
 
 @functools.cache
-def load_t200(path: str | Path | None = None) -> T200:
+def load_t200(path: str | Path | None = None) -> ThrusterMap:
     """The T200 model from `path`, or from the shipped Blue Robotics data (rov_mav/data/t200_performance.csv).
 
     Cached: each path is read once per process."""
     if path is None:
         path = Path(str(resources.files("rov_mav") / "data" / T200_DATA_FILE))
-    return T200.from_csv(path)
+    return ThrusterMap.from_csv(path)
 
 
 @functools.cache
-def _scaled_t200(forward: float, reverse: float) -> T200:
+def _scaled_t200(forward: float, reverse: float) -> ThrusterMap:
     return load_t200() if forward == reverse == 1.0 else load_t200().scaled(forward, reverse)
 
 
-def thruster_curve(vehicle: Vehicle) -> T200:
-    """The shipped T200 data scaled by the vehicle's `thrust_scale` (forward, reverse): what its thrusters push."""
+def thruster_curve(vehicle: Vehicle) -> ThrusterMap:
+    """What the vehicle's thrusters push: its file's quadratic law or the shipped T200 data, scaled by its
+    `thrust_scale` (forward, reverse)."""
     forward, reverse = (float(v) for v in vehicle.thrust_scale)
-    return _scaled_t200(forward, reverse)
+    if vehicle.thruster_curve is None:
+        return _scaled_t200(forward, reverse)
+    return ThrusterMap.quadratic(vehicle.thruster_curve).scaled(forward, reverse)
 
 
-def pwms_to_thrusts(pwms: np.ndarray, voltage: float, t200: T200 | None = None) -> np.ndarray:
+def pwms_to_thrusts(pwms: np.ndarray, voltage: float, t200: ThrusterMap | None = None) -> np.ndarray:
     """Thrusts (..., n) in N of n thrusters at PWMs (..., n) in us and a voltage in V (default: shipped T200)."""
     return (t200 or load_t200()).thrust(pwms, voltage)
 
 
-def thrusts_to_pwms(thrusts: np.ndarray, voltage: float, t200: T200 | None = None) -> np.ndarray:
+def thrusts_to_pwms(thrusts: np.ndarray, voltage: float, t200: ThrusterMap | None = None) -> np.ndarray:
     """PWMs (..., n) in us (float; round before sending) for thrusts (..., n) in N at a voltage in V."""
     return (t200 or load_t200()).pwm(thrusts, voltage)
 
@@ -294,18 +332,18 @@ class Allocator:
 
     @classmethod
     def for_vehicle(
-        cls, vehicle: Vehicle, voltage: float, t200: T200 | None = None, weights: np.ndarray | None = None,
+        cls, vehicle: Vehicle, voltage: float, t200: ThrusterMap | None = None, weights: np.ndarray | None = None,
         max_thrust: float | None = None,
     ) -> "Allocator":
         """Allocator for `vehicle`'s thrusters, limited to their thrust range at `voltage` V (`t200`, default the
         vehicle's `thruster_curve`), and to `max_thrust` N either way when given."""
-        t200 = t200 or thruster_curve(vehicle)
+        curve = t200 or thruster_curve(vehicle)
         n = len(vehicle.thruster_positions)
         cap = np.inf if max_thrust is None else max_thrust
         return cls(
             allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions),
-            np.full(n, -min(t200.max_reverse(voltage), cap)),
-            np.full(n, min(t200.max_forward(voltage), cap)),
+            np.broadcast_to(-np.minimum(curve.max_reverse(voltage), cap), (n,)),
+            np.broadcast_to(np.minimum(curve.max_forward(voltage), cap), (n,)),
             weights,
         )
 

@@ -26,11 +26,39 @@ NonNegative6 = Annotated[list[Annotated[float, Field(ge=0, le=MAX_VALUE)]], Fiel
 DEFAULT_VEHICLE_FILE = "bluerov2_heavy.yaml"
 
 
+class _QuadraticSchema(config.StrictModel):
+    max_thrust: Positive | Annotated[list[Positive], Field(min_length=8, max_length=8)]
+    max_reverse: Positive | Annotated[list[Positive], Field(min_length=8, max_length=8)] | None = None
+    dead_band: Annotated[list[float], Field(min_length=2, max_length=2)] = [1475.0, 1525.0]
+    full_scale: Positive = 400.0
+
+    @model_validator(mode="after")
+    def _band(self) -> "_QuadraticSchema":
+        low, high = self.dead_band
+        if not 1500.0 - self.full_scale < low <= 1500.0 <= high < 1500.0 + self.full_scale:
+            raise ValueError(f"dead_band must hold 1500 and lie within 1500 +- full_scale ({self.full_scale:g} us)")
+        return self
+
+
+class _CurveSchema(config.StrictModel):
+    quadratic: _QuadraticSchema
+
+
 class _ThrusterSchema(config.StrictModel):
     positions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     time_constant: Annotated[float, Field(ge=0, le=10.0)]
     thrust_scale: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
+    curve: _CurveSchema | None = None          # "t200" or absent: the Blue Robotics T200 data
+
+    @field_validator("curve", mode="before")
+    @classmethod
+    def _t200(cls, curve):
+        if curve is None or curve == "t200":
+            return None
+        if not isinstance(curve, dict):
+            raise ValueError("must be t200 or {quadratic: {max_thrust: N, dead_band: [low, high], full_scale: us}}")
+        return curve
 
     @field_validator("directions")
     @classmethod
@@ -72,6 +100,23 @@ class _VehicleSchema(config.StrictModel):
 
 
 @dataclass(frozen=True)
+class QuadraticCurve:
+    """A thruster force law F = k sign(o) o^2, o = (pwm - 1500) / full_scale, zero inside the dead band (ArduPilot's
+    SITL submarine; `rov_mav.model.thrusters.ThrusterMap.quadratic` turns it into a map). k per thruster and
+    direction."""
+
+    max_forward: np.ndarray          # (8,) N at 1500 + full_scale
+    max_reverse: np.ndarray          # (8,) N (magnitudes) at 1500 - full_scale
+    dead_band: tuple[float, float]   # us, force 0 from low to high inclusive
+    full_scale: float                # us
+
+    def document(self) -> dict:
+        """The `thrusters.curve` mapping of a vehicle file."""
+        return {"quadratic": {"max_thrust": self.max_forward.tolist(), "max_reverse": self.max_reverse.tolist(),
+                              "dead_band": list(self.dead_band), "full_scale": self.full_scale}}
+
+
+@dataclass(frozen=True)
 class Vehicle:
     """A rigid vehicle in water: everything the 6-DOF model (Eq. 2.7, Appendix I) needs, in SI units."""
 
@@ -90,7 +135,8 @@ class Vehicle:
     thruster_positions: np.ndarray    # (8, 3)
     thruster_directions: np.ndarray   # (8, 3)
     thruster_time_constant: float
-    thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the T200 data
+    thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the curve
+    thruster_curve: QuadraticCurve | None = None   # None: the Blue Robotics T200 data at the battery voltage
 
     @property
     def weight(self) -> float:
@@ -174,7 +220,7 @@ class Vehicle:
                 "directions": floats(self.thruster_directions),
                 "time_constant": float(self.thruster_time_constant),
                 "thrust_scale": floats(self.thrust_scale),
-            },
+            } | ({} if self.thruster_curve is None else {"curve": self.thruster_curve.document()}),
         }
 
 
@@ -204,7 +250,17 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
         thruster_directions=np.array(s.thrusters.directions, dtype=float),
         thruster_time_constant=s.thrusters.time_constant,
         thrust_scale=np.array(s.thrusters.thrust_scale, dtype=float),
+        thruster_curve=_curve(s.thrusters.curve),
     )
+
+
+def _curve(spec: _CurveSchema | None) -> QuadraticCurve | None:
+    if spec is None:
+        return None
+    q = spec.quadratic
+    forward = np.broadcast_to(np.asarray(q.max_thrust, dtype=float), (8,)).copy()
+    reverse = forward if q.max_reverse is None else np.broadcast_to(np.asarray(q.max_reverse, float), (8,)).copy()
+    return QuadraticCurve(forward, reverse, (float(q.dead_band[0]), float(q.dead_band[1])), float(q.full_scale))
 
 
 def save_vehicle(vehicle: Vehicle, path: str | Path, header: str = "") -> None:

@@ -38,7 +38,7 @@ from scipy.signal import savgol_filter
 
 from rov_mav.model.dynamics import coriolis, jacobian, rotation
 from rov_mav.model.kernel import compiled
-from rov_mav.model.thrusters import NEUTRAL_PWM, T200, allocation_matrix, thruster_curve
+from rov_mav.model.thrusters import NEUTRAL_PWM, ThrusterMap, allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline.tuning import feedforward
 
@@ -83,7 +83,7 @@ def stretches(run: Run) -> list[slice]:
     return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b - a > 1]
 
 
-def bench_thrusts(run: Run, t200: T200) -> np.ndarray:
+def bench_thrusts(run: Run, t200: ThrusterMap) -> np.ndarray:
     """(N, 8) N: the bench thrust at each sent PWM (mirroring undone) and the logged voltage."""
     pushing = np.sign(run.pwm - NEUTRAL_PWM) * np.sign(run.thrusts)
     mirrored = pushing.sum(axis=0) < 0

@@ -52,9 +52,10 @@ NOT_EXCITED = 1e-6            # a parameter whose forces are this small beside t
 VIF_MAX = 1.0e4               # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
 ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw")
-# Lower bounds of theta: added mass, damping, buoyancy and scales are not negative (the vehicle file's rules); the
-# lever is free.
-LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.zeros(5)])
+# Lower bounds of theta: added mass, damping, buoyancy and arms are not negative (the vehicle file's rules), a thrust
+# scale is positive (the instruments divide by it); the lever is free.
+MIN_THRUST_SCALE = 0.05
+LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3)])
 
 
 @dataclass(frozen=True)
