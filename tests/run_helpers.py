@@ -99,8 +99,8 @@ def bridge_with_checker(workdir: Path, *args: str, speedup: float = SPEEDUP) -> 
     return bridge, checker_port
 
 
-def checker(port: int) -> Gcs:
-    gcs = Gcs(port, speedup=SPEEDUP, sysid=CHECKER_SYSID)
+def checker(port: int, speedup: float = SPEEDUP) -> Gcs:
+    gcs = Gcs(port, speedup=speedup, sysid=CHECKER_SYSID)
     gcs.connect()
     return gcs
 

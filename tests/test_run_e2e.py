@@ -20,6 +20,8 @@ from run_helpers import (  # noqa: E402
 
 SQUARE = str(MISSIONS / "square.yaml")
 STEADY_RMS_LIMIT = 0.05       # m
+SQUARE_SPEEDUP = 5.0          # the 228 s square in 46 s: at 10x a loaded 2-core machine starved the runner for
+                              # 0.4-0.6 s of vehicle time, and a starved loop oscillates (README, soak)
 
 
 def _loop_line(metrics: dict, label: str) -> str:
@@ -31,14 +33,15 @@ def _loop_line(metrics: dict, label: str) -> str:
 
 
 def test_square_against_a_bridge_process(tmp_path):
-    bridge, checker_port = bridge_with_checker(tmp_path, "--environment", SQUARE, "--start-depth", "1")
+    bridge, checker_port = bridge_with_checker(tmp_path, "--environment", SQUARE, "--start-depth", "1",
+                                               speedup=SQUARE_SPEEDUP)
     metrics_path = tmp_path / "metrics.json"
     # The runner starts first and waits for the vehicle: the square's disturbance sinks an idle vehicle, so the
     # bridge should not idle long before the runner takes over.
     with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", SQUARE, "--controller", "fuzzy",
                        "--metrics", str(metrics_path), "--log", str(tmp_path / "log"),
                        "--heartbeat-timeout", "60") as run, bridge:
-        gcs = checker(checker_port)
+        gcs = checker(checker_port, SQUARE_SPEEDUP)
         try:
             run.wait_for("armed in MANUAL")
             flying = servo_outputs(gcs)
@@ -48,7 +51,7 @@ def test_square_against_a_bridge_process(tmp_path):
             gcs.close()
     assert flying != [1500] * 8                     # it really drove the thrusters, then let them go
     metrics = json.loads(metrics_path.read_text())
-    print(_loop_line(metrics, f"square vs bridge process at {SPEEDUP:g}x"))
+    print(_loop_line(metrics, f"square vs bridge process at {SQUARE_SPEEDUP:g}x"))
     assert metrics["completed"] and metrics["duration_s"] >= 227.9
     assert metrics["rms_position_error_steady_m"] <= STEADY_RMS_LIMIT, run.output
     assert "neutral 1500 us on channels 1-8: sent, confirmed by SERVO_OUTPUT_RAW" in run.output
