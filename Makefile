@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 RERUN ?= $(if $(DISPLAY)$(WAYLAND_DISPLAY),spawn,save:out/square/run.rrd)
 ARGS ?=
 
-.PHONY: setup run test bench bench-tune reproduce clean
+.PHONY: setup run test bench bench-tune bench-particles reproduce clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,9 @@ bench: setup
 bench-tune: setup
 	$(BIN)/python -m pip install --quiet -e ".[bench]"
 	$(BIN)/python tools/bench_tune.py
+
+bench-particles: setup
+	nice $(BIN)/python tools/bench_particles.py
 
 reproduce: setup
 	$(BIN)/python tools/reproduce_report.py
