@@ -8,20 +8,16 @@ estimate tau_hat (6).
 
 from __future__ import annotations
 
-import math
-
 from rov_mav.model.kernel import (
     P_MINV,
     body_from_earth,
     compiled,
     coriolis_times_nu,
     damping_times_nu,
-    euler_rates,
-    jacobian_dot_nu,
     mass_row,
     restoring,
-    rotation,
-    wrap_angle,
+    state_kinematics,
+    tracking_error,
 )
 
 PARAMETERS = (("k1", 6), ("k2", 6), ("constant_gamma", 6), ("d_max", 6))
@@ -43,21 +39,11 @@ def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
     s    = e_dot + k1 e (Eq. 2.14), e = eta - eta_d with angle errors wrapped (Eq. 2.13)
     grad = (J M^-1)^T s = M^-T J^T s, so that d(tau_hat)/dt = Gamma grad.
     ref: (18,) = [eta_d, eta_dot_d, eta_ddot_d]. Writes tau, s, grad (6,)."""
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
-    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
-    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
-    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
-               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
-    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
     a = grad    # scratch for the virtual acceleration; grad is written only after a is consumed
     for i in range(6):
-        e = eta[i] - ref[i]
-        if i >= 3:
-            e = wrap_angle(e)
-        e_dot = eta_dot[i] - ref[6 + i]
+        e, e_dot = tracking_error(eta, eta_dot, ref, i)
         s[i] = e_dot + k1[i] * e
         a[i] = ref[12 + i] - k1[i] * e_dot - A[i] - k2[i] * s[i]
     wv0, wv1, wv2, wv3, wv4, wv5 = body_from_earth(cphi, sphi, cth, sth, R, a)

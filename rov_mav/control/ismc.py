@@ -28,12 +28,10 @@ from rov_mav.model.kernel import (
     compiled,
     coriolis_times_nu,
     damping_times_nu,
-    euler_rates,
-    jacobian_dot_nu,
     mass_row,
     restoring,
-    rotation,
-    wrap_angle,
+    state_kinematics,
+    tracking_error,
 )
 
 PARAMETERS = (("k_pos", 6), ("kp", 6), ("k", 6), ("phi", 6))
@@ -51,21 +49,11 @@ def step(m, params, eta, nu, ref, dt, state, tau, tau_hat, s):
     k_pos, kp, k, phi = params[0:6], params[6:12], params[12:18], params[18:24]
     integral, initial = state[0:6], state[6:12]
     started = state[12] != 0.0
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
-    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
-    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
-    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
-               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
-    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
     target, accel = s, tau_hat   # scratch in the eta frame, consumed before s and tau_hat are written
     for i in range(6):
-        e = eta[i] - ref[i]
-        if i >= 3:
-            e = wrap_angle(e)
-        e_dot = eta_dot[i] - ref[6 + i]
+        e, e_dot = tracking_error(eta, eta_dot, ref, i)
         target[i] = ref[6 + i] - k_pos[i] * e
         accel[i] = ref[12 + i] - k_pos[i] * e_dot - A[i]
     nu_d = body_from_earth(cphi, sphi, cth, sth, R, target)

@@ -20,18 +20,14 @@ disturbance it holds off.
 
 from __future__ import annotations
 
-import math
-
 from rov_mav.model.kernel import (
     P_M,
     body_from_earth,
     compiled,
     damping_times_nu,
-    euler_rates,
-    jacobian_dot_nu,
     restoring,
-    rotation,
-    wrap_angle,
+    state_kinematics,
+    tracking_error,
 )
 
 PARAMETERS = (("lam", 6), ("k", 6), ("phi", 6))
@@ -51,21 +47,11 @@ def saturation(x):
 def step(m, params, eta, nu, ref, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each."""
     lam, k, phi = params[0:6], params[6:12], params[12:18]
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
-    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
-    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
-    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
-               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
-    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
     acc = tau_hat   # scratch: the reference acceleration in the eta frame, consumed before tau_hat is written
     for i in range(6):
-        e = eta[i] - ref[i]
-        if i >= 3:
-            e = wrap_angle(e)
-        e_dot = eta_dot[i] - ref[6 + i]
+        e, e_dot = tracking_error(eta, eta_dot, ref, i)
         s[i] = e_dot + lam[i] * e
         acc[i] = ref[12 + i] - lam[i] * e_dot - A[i]
     acc_body = body_from_earth(cphi, sphi, cth, sth, R, acc)

@@ -207,3 +207,27 @@ def body_from_earth(cphi, sphi, cth, sth, R, a):
             a[3] - sth * a[5],
             cphi * a[4] + cth * sphi * a[5],
             -sphi * a[4] + cth * cphi * a[5])
+
+
+@compiled
+def state_kinematics(eta, nu):
+    """What every law starts from: (cphi, sphi, cth, sth, R, eta_dot, A) with R the body-to-NED rotation (9-tuple,
+    row-major), eta_dot = J(eta) nu (Eq. 2.4) and A = J_dot(eta) nu, both 6-tuples."""
+    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
+    cth, sth = math.cos(eta[4]), math.sin(eta[4])
+    R = rotation(cphi, sphi, cth, sth, math.cos(eta[5]), math.sin(eta[5]))
+    u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
+    eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,
+               R[6] * u + R[7] * v + R[8] * w, dphi, dth, dpsi)
+    A = jacobian_dot_nu(R, cphi, sphi, cth, sth, dphi, dth, u, v, w, p, q, r)
+    return cphi, sphi, cth, sth, R, eta_dot, A
+
+
+@compiled
+def tracking_error(eta, eta_dot, ref, i):
+    """(e_i, e_dot_i): the error of DOF i against ref = [eta_d, eta_dot_d, eta_ddot_d], angles wrapped (Eq. 2.13)."""
+    e = eta[i] - ref[i]
+    if i >= 3:
+        e = wrap_angle(e)
+    return e, eta_dot[i] - ref[6 + i]
