@@ -23,6 +23,7 @@ from telemetry_helpers import read_column, temporal_entities  # noqa: E402
 from test_bridge_clients import MAVPROXY, Console  # noqa: E402
 from test_bridge_gcs import BridgeProcess  # noqa: E402
 
+from rov_mav.flight.runlog import parse_mission_start  # noqa: E402
 from rov_mav.mission.missions import load_mission  # noqa: E402
 from rov_mav.review.dive_review import review_dive  # noqa: E402
 from rov_mav.review.reference import path_deviation  # noqa: E402
@@ -54,8 +55,8 @@ def end_of_record_at_mission_time(path: Path, fraction: float, duration: float) 
     t0 = None
     try:
         while (msg := conn.recv_msg()) is not None:
-            if msg.get_type() == "STATUSTEXT" and "mission t0 = " in msg.text:
-                t0 = float(msg.text.split("mission t0 = ")[1].split(" s")[0])
+            if msg.get_type() == "STATUSTEXT" and (announced := parse_mission_start(msg.text)) is not None:
+                t0 = announced
             elif msg.get_type() == "ATTITUDE" and t0 is not None and msg.time_boot_ms / 1000 >= t0 + fraction * duration:
                 return conn.f.tell()
     finally:

@@ -34,13 +34,19 @@ class StateDecoder:
 
     def __init__(self, velocity_blend: float = 0.0):
         self.blend = VelocityBlend(velocity_blend)
-        self.attitude = None
-        self.position = None
         self.voltage: float | None = None     # V, from SYS_STATUS
         self.servo: np.ndarray | None = None  # (8,) SERVO1..8 PWM as the vehicle reports them
+        self._latest: dict[str, object] = {}  # the latest message of each state kind
         self._fresh: set[str] = set()
-        self._last_ms: dict[str, int] = {}     # time_boot_ms of the latest message of each state kind
-        self._period_ms: dict[str, int] = {}   # ... and the interval before it
+        self._period_ms: dict[str, int] = {}  # the interval before each kind's latest message
+
+    @property
+    def attitude(self):
+        return self._latest.get("ATTITUDE")
+
+    @property
+    def position(self):
+        return self._latest.get("LOCAL_POSITION_NED")
 
     def update(self, msg) -> bool:
         """Take one message; True when it completes a new (ATTITUDE, LOCAL_POSITION_NED) pair."""
@@ -51,23 +57,19 @@ class StateDecoder:
             self.servo = np.array([getattr(msg, f"servo{i}_raw") for i in range(1, 9)], dtype=float)
         if kind not in STATE_MESSAGES:
             return False
-        last = self._last_ms.get(kind)
-        if last is not None and msg.time_boot_ms < last - REBOOT_MS:
+        previous = self._latest.get(kind)
+        if previous is not None and msg.time_boot_ms < previous.time_boot_ms - REBOOT_MS:
             self._fresh.clear()               # the vehicle rebooted: pair afresh on its new clock
-            self._last_ms.clear()
+            self._latest.clear()
             self._period_ms.clear()
-            last = None
-        if last is not None and msg.time_boot_ms <= last:
-            return False                      # a duplicate or a late, reordered copy
-        if last is not None:
-            self._period_ms[kind] = msg.time_boot_ms - last
-        self._last_ms[kind] = msg.time_boot_ms
-        if kind == "ATTITUDE":
-            self.attitude = msg
-        else:
-            self.position = msg
+            previous = None
+        if previous is not None:
+            if msg.time_boot_ms <= previous.time_boot_ms:
+                return False                  # a duplicate or a late, reordered copy
+            self._period_ms[kind] = msg.time_boot_ms - previous.time_boot_ms
+        self._latest[kind] = msg
         (partner,) = (other for other in STATE_MESSAGES if other != kind)
-        if partner in self._fresh and msg.time_boot_ms - self._last_ms[partner] > self._tolerance_ms():
+        if partner in self._fresh and msg.time_boot_ms - self._latest[partner].time_boot_ms > self._tolerance_ms():
             self._fresh.discard(partner)      # its own partner was lost: it starts no pair
         self._fresh.add(kind)
         if len(self._fresh) < len(STATE_MESSAGES):
