@@ -66,6 +66,22 @@ def test_a_lost_attitude_costs_one_sample_not_every_later_pairing():
     assert all(s.eta[0] == s.eta[5] for s in states)                         # position and attitude of one period
 
 
+def test_a_state_read_after_its_batch_is_the_completed_pair_not_the_next_periods_half():
+    """The runner decodes once per batch it reads: a batch that completes period k and then brings period k+1's
+    ATTITUDE still gives period k's sample (position and attitude of one stamp)."""
+    decoder = StateDecoder()
+    stream = []
+    for k in range(10):
+        stream += [mavlink.MAVLink_attitude_message(1000 + 20 * k, 0.0, 0.0, float(k), 0.0, 0.0, 0.0),
+                   mavlink.MAVLink_local_position_ned_message(1000 + 20 * k, float(k), 0.0, 0.0, 0.0, 0.0, 0.0)]
+    states = []
+    for start in range(0, len(stream), 3):                                   # batches of three messages
+        if any([decoder.update(msg) for msg in stream[start:start + 3]]):
+            states.append(decoder.state(received=0.0))
+    assert len(states) >= 6
+    assert all(s.eta[0] == s.eta[5] and s.t == pytest.approx(1.0 + 0.02 * s.eta[0]) for s in states)
+
+
 def test_the_lead_in_reaches_the_start_pose_smoothly_or_is_skipped():
     start = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
     assert approach(start + 0.01, start, 0.2) is None

@@ -39,6 +39,7 @@ class StateDecoder:
         self._latest: dict[str, object] = {}  # the latest message of each state kind
         self._fresh: set[str] = set()
         self._period_ms: dict[str, int] = {}  # the interval before each kind's latest message
+        self._pair: tuple | None = None       # (ATTITUDE, LOCAL_POSITION_NED) of the latest complete sample
 
     @property
     def attitude(self):
@@ -75,6 +76,7 @@ class StateDecoder:
         if len(self._fresh) < len(STATE_MESSAGES):
             return False
         self._fresh.clear()
+        self._pair = (self._latest["ATTITUDE"], self._latest["LOCAL_POSITION_NED"])
         return True
 
     def _tolerance_ms(self) -> float:
@@ -82,8 +84,9 @@ class StateDecoder:
         return 0.5 * min(self._period_ms.values()) if self._period_ms else float("inf")
 
     def state(self, received: float) -> State:
-        """The latest state, its completing message received at wall time `received` (both must have arrived)."""
-        a, p = self.attitude, self.position
+        """The latest complete sample, its completing message received at wall time `received` (`update` must have
+        completed one). A half of the next sample read since does not enter it."""
+        a, p = self._pair
         t = max(a.time_boot_ms, p.time_boot_ms) / 1000.0
         eta = np.array([p.x, p.y, p.z, a.roll, a.pitch, a.yaw], dtype=float)
         v_ned = self.blend.update(t, eta[:3], np.array([p.vx, p.vy, p.vz], dtype=float))
