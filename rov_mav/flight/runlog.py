@@ -46,9 +46,12 @@ def parse_mission_start(text: str) -> float | None:
 
 
 def tick_row(r: TickRecord) -> list[str]:
-    values = [r.t, r.vehicle_time, r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
+    """One ticks.csv row: the times as exactly as the run held them (its metrics' windows are read back from them),
+    every other value to 9 significant digits."""
+    times = [repr(float(r.t)), repr(float(r.vehicle_time))]
+    values = [r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
               *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage]
-    return [f"{float(v):.9g}" for v in values]
+    return times + [f"{float(v):.9g}" for v in values]
 
 
 class RunLog:
