@@ -153,7 +153,7 @@ def test_boot_state_and_modes():
     sub = ArduSub(Params())
     assert (sub.mode, sub.armed, sub.base_mode(), sub.system_status()) == (19, False, 81, 3)
     assert sub.set_mode(MODES["POSHOLD"]) and sub.base_mode() == 89
-    assert not sub.set_mode(MODES["GUIDED"]) and not sub.set_mode(42) and sub.mode == MODES["POSHOLD"]
+    assert not sub.set_mode(MODES["AUTO"]) and not sub.set_mode(42) and sub.mode == MODES["POSHOLD"]
     assert sub.arm(True) == MAV_RESULT_ACCEPTED and sub.base_mode() == 89 + 128 and sub.system_status() == 4
 
 
