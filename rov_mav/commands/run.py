@@ -56,6 +56,12 @@ is gone it says so: the thrusters then hold their last command on the vehicle. R
 resent with growing waits, so that a lossy link (30 % each way) does not stop a start or a stop; a step of the stop
 the vehicle never confirmed is named, and the exit status is then not 0.
 
+With --controller ardusub-guided there is no law of ours: SERVO1..8_FUNCTION stay on the motors, the run sets
+GUIDED, arms, and streams the reference (lead-in included) as SET_POSITION_TARGET_LOCAL_NED (position, velocity,
+yaw) at --guided-rate Hz of vehicle time; neutral RC overrides are held as pilot input (ArduSub's pilot-input
+failsafe disarms without it). Its stop leaves GUIDED for MANUAL, then does the same neutral, release and disarm, and
+sets back the mode it found.
+
 Before sending anything it watches the link for 3 s of vehicle time and refuses (unless --force) a vehicle that is
 not ArduSub on a submarine, is armed, is driven by another station (RC overrides, a joystick off centre) or whose
 RC input is changing; outputs found on passthrough are taken as abandoned only when none of that holds. A pilot

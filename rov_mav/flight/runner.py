@@ -11,6 +11,9 @@ sysid, RC input that is not ours, or a mode changed by someone else hands the ve
 Tick (each new ATTITUDE + LOCAL_POSITION_NED pair): reference -> law + adaptation -> allocation -> T200 map ->
 RC_CHANNELS_OVERRIDE, a TickRecord to every sink. When the mission proper starts (after the lead-in) the run says so
 on the link, in vehicle time (`runlog.mission_start_text`), so that any telemetry log of the dive aligns with it.
+With a GuidedStream instead of a law (`--controller ardusub-guided`, flight/guided.py): no passthrough, GUIDED
+instead of MANUAL, the tick sends the reference to the vehicle's own position controller; the stop first leaves
+GUIDED for MANUAL (so neutral can be confirmed) and ends by setting back the mode it found.
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
