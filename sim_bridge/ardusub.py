@@ -15,8 +15,10 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   directions; with no RC receiver the output keeps its last value after the override ends.
 - SERVOn_FUNCTION 33..40 (motors 1..8) come from the vectored_6dof mixer of the pilot channels, only when armed
   (1500 us when disarmed), limited to MOT_PWM_MIN..MAX, or RC3_MIN..MAX when those two are invalid
-  (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE, ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, on
-  the state estimate passed to `update`.
+  (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE,
+  ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, in GUIDED through `guided`'s position
+  controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`. GUIDED
+  needs a position estimate (`ModeGuided::init`): the bridge always has one.
 - Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
   channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
 - GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
@@ -29,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim_bridge import joystick, mixer
+from sim_bridge.guided import Guided
 from sim_bridge.params import Params
 from sim_bridge.rc import RCInput
 from sim_bridge.stabilize import ASSISTED, Holds
@@ -36,7 +39,7 @@ from sim_bridge.stabilize import ASSISTED, Holds
 MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRCLE": 7, "SURFACE": 9,
          "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
 MODE_NAMES = {number: name for name, number in MODES.items()}
-SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL")})
+SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL", "GUIDED")})
 GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 
 MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
@@ -81,6 +84,8 @@ class ArduSub:
         self._routing_version = -1
         self._mix_key: tuple | None = None
         self.holds = Holds()
+        self.guided = Guided()
+        self._state: tuple[np.ndarray, np.ndarray] | None = None   # the last estimate `update` was given
         self._held: np.ndarray | None = None          # motor PWM from the assisted modes' holds, this pass
         self._t = t
 
@@ -117,6 +122,8 @@ class ArduSub:
         """MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT. Arming in MANUAL has no pre-arm failures (as on SITL)."""
         if arm != self.armed:
             self.holds.reset()
+            self.guided.reset()
+            self._held = None
         self.armed = arm
         return MAV_RESULT_ACCEPTED
 
@@ -130,6 +137,8 @@ class ArduSub:
             return False
         if custom_mode != self.mode:
             self.holds.reset()
+            self.guided.reset()
+            self._held = None
         self.mode = custom_mode
         return True
 
@@ -149,9 +158,23 @@ class ArduSub:
             self._next_gcs_check = t + GCS_CHECK_PERIOD
             self._gcs_check(t)
         self._held = None
-        if self.armed and self.mode in ASSISTED and state is not None:
+        self._state = state
+        if not self.armed or state is None:
+            return
+        if self.mode in ASSISTED:
             axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt)
-            self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), *self._pwm_range())
+        elif self.mode == MODES["GUIDED"]:
+            axes = self.guided.axes(self.params, *state, t, dt)
+        else:
+            return
+        self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), *self._pwm_range())
+
+    def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float) -> bool:
+        """SET_POSITION_TARGET_LOCAL_NED's fields: a GUIDED target (`sim_bridge.guided`); False (ignored) outside
+        GUIDED or when ArduSub would ignore it."""
+        if self.mode != MODES["GUIDED"]:
+            return False
+        return self.guided.target(frame, type_mask, position, velocity, yaw, self._state, t)
 
     def _pilot_input_check(self, t: float) -> None:
         if self.params["FS_PILOT_INPUT"] == 0:
@@ -202,7 +225,7 @@ class ArduSub:
         """PWM (8,) of motors 1..8: the mixer when armed, neutral when disarmed."""
         if not self.armed:
             return _NEUTRAL
-        if self._held is not None and self.mode in ASSISTED:
+        if self._held is not None:
             return self._held
         key = (self.rc.radio_in[:6].tobytes(), self.params.version)
         if key != self._mix_key:                 # the mixer only when the pilot channels or parameters changed

@@ -26,6 +26,21 @@ STREAM_DEFAULTS = {"RAW_SENS": 2, "EXT_STAT": 2, "RC_CHAN": 2, "RAW_CTRL": 0, "P
                    "EXTRA1": 10, "EXTRA2": 10, "EXTRA3": 3, "PARAMS": 0, "ADSB": 0}
 
 
+# GUIDED's position and attitude controllers (`sim_bridge.guided`): ArduSub 4.5.3's defaults, read from its SITL.
+GUIDED_DEFAULTS = {
+    "ANGLE_MAX": 4500.0,                                                 # cd
+    "WPNAV_ACCEL": 250.0, "WPNAV_SPEED_UP": 250.0, "WPNAV_SPEED_DN": 150.0, "WPNAV_ACCEL_Z": 100.0,   # cm/s, cm/s/s
+    "PSC_POSXY_P": 1.0, "PSC_VELXY_P": 6.0, "PSC_VELXY_I": 0.5, "PSC_VELXY_D": 0.0, "PSC_VELXY_IMAX": 1000.0,
+    "PSC_VELXY_FLTE": 5.0, "PSC_VELXY_FLTD": 5.0,
+    "PSC_POSZ_P": 3.0, "PSC_VELZ_P": 8.0,
+    "PSC_ACCZ_P": 0.5, "PSC_ACCZ_I": 0.1, "PSC_ACCZ_D": 0.0, "PSC_ACCZ_IMAX": 100.0, "PSC_ACCZ_FLTE": 20.0,
+    "ATC_ANG_RLL_P": 6.0, "ATC_ANG_PIT_P": 6.0, "ATC_ANG_YAW_P": 6.0, "ATC_RATE_Y_MAX": 180.0,        # deg/s
+    "ATC_RAT_RLL_P": 0.135, "ATC_RAT_RLL_I": 0.09, "ATC_RAT_RLL_D": 0.0036, "ATC_RAT_RLL_IMAX": 0.444,
+    "ATC_RAT_PIT_P": 0.135, "ATC_RAT_PIT_I": 0.09, "ATC_RAT_PIT_D": 0.0036, "ATC_RAT_PIT_IMAX": 0.444,
+    "ATC_RAT_YAW_P": 0.18, "ATC_RAT_YAW_I": 0.018, "ATC_RAT_YAW_D": 0.0, "ATC_RAT_YAW_IMAX": 0.222,
+}
+
+
 @dataclass(frozen=True)
 class Spec:
     name: str
@@ -83,6 +98,7 @@ def _table(names: Names) -> list[Spec]:
         Spec("BATT_CAPACITY", 18000, INT32),
         Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run
     ]
+    specs += [Spec(name, value, REAL32) for name, value in GUIDED_DEFAULTS.items()]
     for channel in range(CHANNELS):
         specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]
     specs += [

@@ -61,6 +61,9 @@ class Protocol:
             self.vehicle.rc_override(sysid, [getattr(msg, f"chan{i}_raw") for i in range(1, 19)], t)
         elif kind == "MANUAL_CONTROL":
             self.vehicle.manual_control(sysid, msg.target, (msg.x, msg.y, msg.z, msg.r, msg.s, msg.t), t)
+        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            self.vehicle.position_target(msg.coordinate_frame, msg.type_mask, (msg.x, msg.y, msg.z),
+                                         (msg.vx, msg.vy, msg.vz), msg.yaw, t)
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg, scheduler, t)
         elif kind == "SET_MODE":

@@ -153,7 +153,7 @@ def test_boot_state_and_modes():
     sub = ArduSub(Params())
     assert (sub.mode, sub.armed, sub.base_mode(), sub.system_status()) == (19, False, 81, 3)
     assert sub.set_mode(MODES["POSHOLD"]) and sub.base_mode() == 89
-    assert not sub.set_mode(MODES["GUIDED"]) and not sub.set_mode(42) and sub.mode == MODES["POSHOLD"]
+    assert not sub.set_mode(MODES["AUTO"]) and not sub.set_mode(42) and sub.mode == MODES["POSHOLD"]
     assert sub.arm(True) == MAV_RESULT_ACCEPTED and sub.base_mode() == 89 + 128 and sub.system_status() == 4
 
 
@@ -326,7 +326,7 @@ def test_protocol_commands_and_acks(protocol):
     assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED
     [(ack, _)] = proto.handle(decode(GCS.set_mode_encode(1, 1, 2)), 0, scheduler, 0.0)
     assert (ack.command, ack.result, sub.mode) == (11, mavlink.MAV_RESULT_ACCEPTED, 2)
-    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0)), 0, scheduler, 0)
+    [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, 1, 3, 0, 0, 0, 0, 0)), 0, scheduler, 0)
     assert ack.result == mavlink.MAV_RESULT_FAILED and sub.mode == 2
     [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, 0, 19, 0, 0, 0, 0, 0)), 0, scheduler, 0)
     assert ack.result == mavlink.MAV_RESULT_DENIED
@@ -459,8 +459,8 @@ def test_commands_cast_their_parameters_as_ardusub_45_sitl(protocol):
     assert command(176, 1.5, 275.7) == mavlink.MAV_RESULT_ACCEPTED and sub.mode == MODES["MANUAL"]  # 275 -> uint8 19
     assert command(176, 1, 2) == mavlink.MAV_RESULT_ACCEPTED and sub.mode == MODES["ALT_HOLD"]
     sub.texts.clear()
-    assert command(176, 1, 99) == command(176, 1, 4) == mavlink.MAV_RESULT_FAILED and sub.mode == MODES["ALT_HOLD"]
-    assert [text for _, text in sub.texts] == ["No such mode 99", "Flight mode change failed GUIDED"]
+    assert command(176, 1, 99) == command(176, 1, 3) == mavlink.MAV_RESULT_FAILED and sub.mode == MODES["ALT_HOLD"]
+    assert [text for _, text in sub.texts] == ["No such mode 99", "Flight mode change failed AUTO"]
     assert command(176, 0, 19) == command(176, 128, 2) == command(176, math.nan, 19) == mavlink.MAV_RESULT_DENIED
     assert command(176, 128, 1) == mavlink.MAV_RESULT_ACCEPTED and sub.safety_on
     assert not sub.servo_outputs().any()                                          # safety on: no pulses at all

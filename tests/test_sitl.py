@@ -96,3 +96,20 @@ def test_sitls_own_vehicle_file_holds_pitch_on_sitl(sitl, tmp_path):
     pitch = np.degrees(np.abs(ticks["theta"][flown] - ticks["theta_d"][flown]))
     print(f"pitch error on SITL with its own vehicle file: median {np.median(pitch):.4f} deg")
     assert np.median(pitch) < 0.03
+
+
+def test_guided_on_sitl_flies_the_mission_and_leaves_it_as_found(sitl, tmp_path):
+    """`--controller ardusub-guided`: ArduSub's own position controller flies the reference; nothing but the mode
+    and arming change, and both are put back."""
+    instance, checker = sitl
+    metrics = tmp_path / "metrics.json"
+    with _run(instance, short_mission(tmp_path, goto_x=2.0, hold=3.0), "--controller", "ardusub-guided",
+              "--metrics", str(metrics)) as run:
+        run.wait_for("armed in GUIDED")
+        assert checker.fresh("HEARTBEAT").custom_mode == 4
+        assert run.wait() == 0, run.output
+    checker.assert_left_safe()
+    assert checker.fresh("HEARTBEAT").custom_mode == 19 and checker.param("SYSID_MYGCS") == 255
+    result = json.loads(metrics.read_text())
+    print(f"GUIDED on SITL, short mission: RMS {result['rms_position_error_m'] * 100:.1f} cm")
+    assert result["completed"] and result["rms_position_error_m"] < 0.25

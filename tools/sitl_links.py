@@ -1,5 +1,5 @@
-"""Stations on an ArduSub SITL for tools/sitl_square.py: a truth monitor and ArduSub's own GUIDED controller as a
-peer of `rov-mav run`.
+"""A station on an ArduSub SITL for tools/sitl_square.py: a truth monitor beside the flight (`rov-mav run`, with a law
+of ours or `--controller ardusub-guided`).
 
 `Monitor` (sysid 200, neither drives nor masks a GCS) records, on its own link, ATTITUDE, LOCAL_POSITION_NED and
 SIM_STATE at one rate. ArduPilot sends messages of the same interval in one burst of one scheduler pass, in that
@@ -7,33 +7,20 @@ order (ATTITUDE, SIM_STATE, LOCAL_POSITION_NED: measured), so a SIM_STATE (which
 time_boot_ms of the ATTITUDE before it, and the LOCAL_POSITION_NED with that time_boot_ms is the estimate at the
 same instant. SIM_STATE's lat_int/lon_int (1e-7 deg, ~1 cm) and alt become NED about GPS_GLOBAL_ORIGIN, the
 EKF's origin, with ArduPilot's flat-earth scaling (Location::get_distance_NE).
-
-`GuidedFlight` (the GCS, sysid 255) flies the same reference with ArduSub's position controller: GUIDED mode, then
-SET_POSITION_TARGET_LOCAL_NED with position + velocity + yaw (type_mask 0x9C0, MAV_FRAME_LOCAL_NED) at a fixed rate
-of vehicle time. ArduSub 4.5 (ArduSub/GCS_Mavlink.cpp, handle_message for SET_POSITION_TARGET_LOCAL_NED) takes
-LOCAL_NED positions about the EKF origin, z down negated to its NEU, and with position and velocity given and
-acceleration ignored calls ModeGuided::guided_set_destination_posvel.
 """
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 
 import numpy as np
 from pymavlink import mavutil
 
-from rov_mav.mission.approach import approach
-from rov_mav.mission.missions import Mission
 
 mavlink = mavutil.mavlink
 LATLON_TO_M = 0.011131884502145034      # m per 1e-7 deg of latitude (ArduPilot's LOCATION_SCALING_FACTOR)
 MONITOR_SYSID = 200
-GCS_SYSID = 255
-GUIDED = 4
-MANUAL = 19
-POS_VEL_YAW = 0x9C0                     # ignore acceleration (0x1C0) and yaw rate (0x800)
 CONNECT_WAIT = 30.0                     # wall s
 
 
@@ -137,103 +124,3 @@ class Monitor(threading.Thread):
         idx = np.searchsorted(c[:, 1], edges)
         windows = [(c[j, 0] - c[i, 0]) / 1000.0 / (c[j, 1] - c[i, 1]) for i, j in zip(idx[:-1], idx[1:]) if j > i]
         return mean, min(windows) if windows else mean
-
-
-class GuidedFlight:
-    """ArduSub's GUIDED position controller on `mission`, fed position + velocity + yaw at `rate` Hz of vehicle time."""
-
-    def __init__(self, port: int, mission: Mission, rate: float, approach_speed: float = 0.2):
-        self.conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=GCS_SYSID,
-                                               source_component=190)
-        self.conn.wait_heartbeat(timeout=CONNECT_WAIT)
-        self.mission = mission
-        self.rate = rate
-        self.approach_speed = approach_speed
-        self.t_vehicle = 0.0
-        self.attitude = None
-        self.position = None
-        self.heartbeat = None
-        self._next_heartbeat = 0.0
-        self.log: list[tuple] = []          # (vehicle s, mission s, eta (6,), eta_d (6,))
-
-    def _pump(self, timeout: float) -> bool:
-        """Read what arrived; True when a new (ATTITUDE, LOCAL_POSITION_NED) pair of one time_boot_ms is complete."""
-        fresh = False
-        msg = self.conn.recv_match(blocking=True, timeout=timeout)
-        while msg is not None:
-            if msg.get_srcSystem() == 1:
-                kind = msg.get_type()
-                if kind == "ATTITUDE":
-                    self.attitude = msg
-                elif kind == "LOCAL_POSITION_NED":
-                    self.position = msg
-                    fresh = self.attitude is not None
-                elif kind == "HEARTBEAT":
-                    self.heartbeat = msg
-                if hasattr(msg, "time_boot_ms"):
-                    self.t_vehicle = max(self.t_vehicle, msg.time_boot_ms / 1000.0)
-            msg = self.conn.recv_match(blocking=False)
-        if self.t_vehicle >= self._next_heartbeat:
-            self._next_heartbeat = self.t_vehicle + 1.0
-            self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        return fresh
-
-    def _eta(self) -> np.ndarray:
-        a, p = self.attitude, self.position
-        return np.array([p.x, p.y, p.z, a.roll, a.pitch, a.yaw])
-
-    def _until(self, condition, timeout: float, what: str) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self._pump(0.05)
-            if condition():
-                return
-        raise RuntimeError(f"GUIDED flight: {what} not confirmed within {timeout:g} s")
-
-    def _command(self, command: int, *params: float) -> None:
-        self.conn.mav.command_long_send(1, 1, command, 0, *params, *([0.0] * (7 - len(params))))
-
-    def fly(self) -> None:
-        for name in ("ATTITUDE", "LOCAL_POSITION_NED"):
-            set_interval(self.conn, getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), 50.0)
-        self._until(lambda: self.position is not None and self.attitude is not None, 60.0, "position")
-        lead = approach(self._eta(), self.mission.start_pose, self.approach_speed)
-        lead_time = lead.duration if lead is not None else 0.0
-        self._command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
-        self._until(lambda: self.heartbeat is not None and self.heartbeat.custom_mode == GUIDED, 10.0, "GUIDED")
-        self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        self._until(lambda: self.heartbeat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED, 10.0, "arming")
-        try:
-            self._follow(lead, lead_time)
-        finally:
-            self._command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, MANUAL)
-            self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
-            self._pump(0.5)
-
-    def _reference(self, t: float, lead: Mission | None, lead_time: float) -> np.ndarray:
-        if t < 0 and lead is not None:
-            return lead.reference(t + lead_time)
-        return self.mission.reference(max(t, 0.0))
-
-    def _follow(self, lead: Mission | None, lead_time: float) -> None:
-        t0 = self.t_vehicle + lead_time               # mission time 0 on the vehicle's clock
-        period = 1.0 / self.rate
-        next_send = self.t_vehicle
-        while True:
-            fresh = self._pump(0.02)
-            if self.t_vehicle >= next_send:
-                next_send += period
-                ref = self._reference(self.t_vehicle - t0, lead, lead_time)
-                x, y, z, _, _, yaw = ref[:6]
-                vx, vy, vz = ref[6:9]
-                self.conn.mav.set_position_target_local_ned_send(
-                    int(self.t_vehicle * 1000) & 0xFFFFFFFF, 1, 1, mavlink.MAV_FRAME_LOCAL_NED, POS_VEL_YAW,
-                    x, y, z, vx, vy, vz, 0.0, 0.0, 0.0, math.remainder(yaw, 2 * math.pi), 0.0)
-            if fresh:
-                t = max(self.attitude.time_boot_ms, self.position.time_boot_ms) / 1000.0
-                self.log.append((t, t - t0, self._eta(), self._reference(t - t0, lead, lead_time)[:6]))
-                if t - t0 >= self.mission.duration:
-                    return
-
-    def close(self) -> None:
-        self.conn.close()

@@ -1,9 +1,9 @@
 """Fly a mission (the square by default) on ArduPilot's own ArduSub SITL and print the tracking table.
 
 Each run boots a fresh SITL (`rov_mav.sitl`: scratch directory, free instance, ended by its PID), waits for its EKF,
-and flies the mission either with `rov-mav run --target tcp:...` (its own process, any extra run options after
-`--`) or with ArduSub's GUIDED controller fed the same reference (`--guided HZ`). A monitor on SITL's other link
-records the EKF estimate and SITL's true state (SIM_STATE) throughout.
+and flies the mission with `rov-mav run --target tcp:...` (its own process, any extra run options after `--`);
+`--guided HZ` flies it with `--controller ardusub-guided --guided-rate HZ` (ArduSub's GUIDED controller fed the same
+reference). A monitor on SITL's other link records the EKF estimate and SITL's true state (SIM_STATE) throughout.
 
 Printed per run: against the EKF estimate (what the controller sees) on the reference, RMS and max 3D position
 error, heading RMS and max, pitch RMS; for rov-mav, tau_hat at the end; against SITL's truth, the RMS 3D error;
@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sitl_links import GuidedFlight, Monitor
+from sitl_links import Monitor
 
 from rov_mav.mission.missions import load_mission
 from rov_mav.sitl import Sitl, SitlError, binary_from_environment
@@ -110,23 +110,14 @@ def fly_runner(sitl: Sitl, mission: Path, run_dir: Path, options: list[str]) -> 
     return {"t_vehicle": ticks["vehicle_time"][flown],
             "eta": np.column_stack([ticks[d][flown] for d in dof]),
             "eta_d": np.column_stack([ticks[f"{d}_d"][flown] for d in dof]),
-            "tau_hat": [float(ticks[f"tau_hat_{w}"][-1]) for w in "XYZKMN"],
+            "tau_hat": None if np.isnan(ticks["tau_hat_X"][-1]) else [float(ticks[f"tau_hat_{w}"][-1]) for w in "XYZKMN"],
             "rate_hz": loop["control_rate_hz"], "stale": int(stale.group(1)) if stale else 0,
             "late_ticks": int(np.sum(gaps > LATE)), "longest_gap_ms": float(gaps.max()) * 1000.0}
 
 
-def fly_guided(sitl: Sitl, mission_path: Path, rate: float) -> dict:
-    mission = load_mission(mission_path)
-    flight = GuidedFlight(sitl.port1, mission, rate)
-    try:
-        flight.fly()
-    finally:
-        flight.close()
-    rows = [r for r in flight.log if r[1] >= 0.0]
-    t = np.array([r[0] for r in rows])
-    return {"t_vehicle": t, "eta": np.array([r[2] for r in rows]), "eta_d": np.array([r[3] for r in rows]),
-            "tau_hat": None, "rate_hz": rate, "stale": 0, "late_ticks": int(np.sum(np.diff(t) > LATE)),
-            "longest_gap_ms": float(np.diff(t).max()) * 1000.0}
+def fly_guided(sitl: Sitl, mission_path: Path, rate: float, run_dir: Path) -> dict:
+    """ArduSub's GUIDED controller through the product path: `rov-mav run --controller ardusub-guided`."""
+    return fly_runner(sitl, mission_path, run_dir, ["--controller", "ardusub-guided", "--guided-rate", f"{rate:g}"])
 
 
 def one_run(args, run_dir: Path, binary: Path) -> dict:
@@ -138,7 +129,7 @@ def one_run(args, run_dir: Path, binary: Path) -> dict:
         try:
             monitor.wait_for_position(POSITION_WAIT)
             if args.guided:
-                flight = fly_guided(sitl, args.mission, args.guided)
+                flight = fly_guided(sitl, args.mission, args.guided, run_dir)
             else:
                 flight = fly_runner(sitl, args.mission, run_dir, args.run_options)
         finally:

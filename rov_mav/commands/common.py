@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rov_mav.commands.arguments import lat_lon, plan_speed, require_writable, six_floats, unwritable
+from rov_mav.config import ConfigError
 from rov_mav.control.controller import KINDS, ControllerSettings, load_settings
 
 if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording (`rov-mav --help` stays fast)
@@ -25,6 +26,8 @@ MISSION_HELP = ("mission file: our YAML (e.g. missions/square.yaml), a QGroundCo
                 "missions/under_ice_survey.plan), or a YAML naming a plan (plan: FILE.plan) with its environment "
                 "and limits")
 
+
+RUN_ONLY = ("ardusub-guided",)      # no law of ours: `run` streams the reference to the vehicle's controller
 
 def add_plan_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("QGroundControl plans and vehicle missions")
@@ -62,10 +65,11 @@ def report_skipped(mission: Mission) -> None:
 
 def add_controller_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("controller")
-    group.add_argument("--controller", choices=list(KINDS), default="fuzzy",
+    group.add_argument("--controller", choices=[*KINDS, *RUN_ONLY], default="fuzzy",
                        help="the report's backstepping law with fuzzy adaptation rates (Appendix III), constant "
                             "rates, or none (baseline); or pid (ArduSub-style cascade), smc (sliding mode per DOF), "
-                            "ismc (integral sliding mode with the model's feed-forward); default: fuzzy")
+                            "ismc (integral sliding mode with the model's feed-forward); `run` only: ardusub-guided "
+                            "(no law of ours: ArduSub's GUIDED mode flies the reference); default: fuzzy")
     group.add_argument("--gains", metavar="FILE",
                        help="YAML with any of the controller's keys (e.g. the output of `rov-mav tune`): k1, k2, "
                             "constant_gamma, d_max for the report's law (default: Eqs. 4.1-4.2); pid, smc, ismc: see "
@@ -99,6 +103,10 @@ def signing_key(args: argparse.Namespace) -> bytes | None:
 
 
 def controller_settings(args: argparse.Namespace) -> ControllerSettings:
+    """The law's settings; ConfigError (one line) for a controller that only `run` can fly."""
+    if args.controller in RUN_ONLY:
+        raise ConfigError(f"--controller {args.controller}: ArduSub's GUIDED mode flies it, so only `rov-mav run` "
+                          "can use it (here: one of " + ", ".join(KINDS) + ")")
     return load_settings(args.controller, args.gains, args.fuzzy_rules, args.k1, args.k2)
 
 

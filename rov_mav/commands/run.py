@@ -56,6 +56,12 @@ is gone it says so: the thrusters then hold their last command on the vehicle. R
 resent with growing waits, so that a lossy link (30 % each way) does not stop a start or a stop; a step of the stop
 the vehicle never confirmed is named, and the exit status is then not 0.
 
+With --controller ardusub-guided there is no law of ours: SERVO1..8_FUNCTION stay on the motors, the run sets
+GUIDED, arms, and streams the reference (lead-in included) as SET_POSITION_TARGET_LOCAL_NED (position, velocity,
+yaw) at --guided-rate Hz of vehicle time; neutral RC overrides are held as pilot input (ArduSub's pilot-input
+failsafe disarms without it). Its stop leaves GUIDED for MANUAL, then does the same neutral, release and disarm, and
+sets back the mode it found.
+
 Before sending anything it watches the link for 3 s of vehicle time and refuses (unless --force) a vehicle that is
 not ArduSub on a submarine, is armed, is driven by another station (RC overrides, a joystick off centre) or whose
 RC input is changing; outputs found on passthrough are taken as abandoned only when none of that holds. A pilot
@@ -103,6 +109,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=number(1.0, MAX_RATE), default=50.0, metavar="HZ",
                    help="control rate in Hz of vehicle time, 1 to 400: telemetry asked for and overrides sent "
                         "(default 50)")
+    p.add_argument("--guided-rate", type=number(0.5, MAX_RATE), default=10.0, metavar="HZ",
+                   help="--controller ardusub-guided: SET_POSITION_TARGET_LOCAL_NED per second of vehicle time, 0.5 "
+                        "to 400 (default 10)")
     p.add_argument("--output", choices=["thrusters"], default="thrusters",
                    help="how commands reach the vehicle: per-thruster PWMs through RCIN passthrough (default)")
     p.add_argument("--dry-run", action="store_true",
@@ -208,6 +217,8 @@ def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav.control.controller import Controller
     from rov_mav.flight.actuation import Actuation
+    from rov_mav.flight.guided import KIND as GUIDED_KIND
+    from rov_mav.flight.guided import GuidedStream
     from rov_mav.flight.link import LinkError, Session
     from rov_mav.flight.runlog import RunLog
     from rov_mav.flight.runner import Limits, Runner, RunOptions
@@ -222,7 +233,9 @@ def main(args: argparse.Namespace) -> int:
     mission = None if args.mission_from_vehicle else load_mission(args)
     limits = None if mission is None else _limits(args, mission, Limits)
     key = signing_key(args)
-    settings = controller_settings(args)
+    guided = args.controller == GUIDED_KIND
+    settings = None if guided else controller_settings(args)
+    kind = GUIDED_KIND if guided else settings.kind
     model = load_vehicle(args.vehicle)
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
@@ -259,7 +272,7 @@ def main(args: argparse.Namespace) -> int:
         if args.log:
             run_log = RunLog(args.log)
             run_log.write_run_info({
-                "mission": mission.name, "mission_source": mission.source, "controller": settings.kind,
+                "mission": mission.name, "mission_source": mission.source, "controller": kind,
                 "rate_hz": args.rate, "target": args.target or "built-in vehicle", "dry_run": args.dry_run,
                 "limits": dataclasses.asdict(limits),
                 "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
@@ -270,7 +283,9 @@ def main(args: argparse.Namespace) -> int:
             sinks.append(rerun)
         actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
                               pretension=args.pretension == "on")
-        runner = Runner(session, mission, Controller(model, settings), actuation, options, sinks, true_disturbance)
+        stream = GuidedStream(session, args.guided_rate) if guided else None
+        controller = None if guided else Controller(model, settings)
+        runner = Runner(session, mission, controller, actuation, options, sinks, true_disturbance, stream)
         result = runner.run()
     finally:
         for sink in sinks:
@@ -280,7 +295,7 @@ def main(args: argparse.Namespace) -> int:
             bridge.stop()
     loop = result.loop_figures()
     flown = result.t >= 0.0   # the mission proper, without the lead-in to its start
-    metrics = run_metrics(mission.name, settings.kind, result.t[flown], result.eta[flown], result.eta_d[flown],
+    metrics = run_metrics(mission.name, kind, result.t[flown], result.eta[flown], result.eta_d[flown],
                           result.tau[flown], result.tau_hat[flown], true_disturbance, result.completed)
     metrics["loop"] = loop
     if args.metrics:
@@ -288,7 +303,7 @@ def main(args: argparse.Namespace) -> int:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(metrics, indent=2) + "\n")
     status = "completed" if result.completed else f"NOT completed ({result.reason})"
-    print(f"{mission.name} / {settings.kind}{' (dry run)' if args.dry_run else ''}: {status}, "
+    print(f"{mission.name} / {kind}{' (dry run)' if args.dry_run else ''}: {status}, "
           f"{metrics['duration_s']:.1f} s of mission flown")
     if result.t.size:
         print(f"  position error RMS {metrics['rms_position_error_m'] * 100:.2f} cm (steady "

@@ -12,6 +12,8 @@ first send, as TCP times its segments: RFC 6298), within RETRY_MIN..RETRY_FIRST.
 
 from __future__ import annotations
 
+import math
+
 import os
 import secrets
 import socket
@@ -32,6 +34,8 @@ mavlink = mavutil.mavlink
 
 HEARTBEAT_PERIOD = 1.0          # vehicle s
 MANUAL = 19                     # ArduSub custom_mode
+GUIDED = 4
+POS_VEL_YAW = 0x9C0              # SET_POSITION_TARGET type_mask: acceleration and yaw rate ignored
 NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
@@ -289,6 +293,13 @@ class Session:
         """STATUSTEXT (INFO) to every station on the link; ArduSub writes it to its own log
         (`GCS_MAVLINK::handle_statustext`, libraries/GCS_MAVLink/GCS_Common.cpp)."""
         self._send("statustext", mavlink.MAV_SEVERITY_INFO, text.encode()[:50])
+
+    def send_position_target(self, position, velocity, yaw: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_LOCAL_NED: position (m) + velocity (m/s) + yaw (rad); ArduSub
+        (4.5, GCS_MAVLINK_Sub::handle_message) flies it in GUIDED with `guided_set_destination_posvel`."""
+        self._send("set_position_target_local_ned", int(self.clock.now() * 1000) & 0xFFFFFFFF, self.vehicle.sysid,
+                   self.vehicle.compid, mavlink.MAV_FRAME_LOCAL_NED, POS_VEL_YAW, *map(float, position),
+                   *map(float, velocity), 0.0, 0.0, 0.0, math.remainder(float(yaw), 2 * math.pi), 0.0)
 
     def set_mode(self, custom_mode: int) -> bool:
         """DO_SET_MODE, accepted and confirmed by a HEARTBEAT."""

@@ -11,6 +11,9 @@ sysid, RC input that is not ours, or a mode changed by someone else hands the ve
 Tick (each new ATTITUDE + LOCAL_POSITION_NED pair): reference -> law + adaptation -> allocation -> T200 map ->
 RC_CHANNELS_OVERRIDE, a TickRecord to every sink. When the mission proper starts (after the lead-in) the run says so
 on the link, in vehicle time (`runlog.mission_start_text`), so that any telemetry log of the dive aligns with it.
+With a GuidedStream instead of a law (`--controller ardusub-guided`, flight/guided.py): no passthrough, GUIDED
+instead of MANUAL, the tick sends the reference to the vehicle's own position controller; the stop first leaves
+GUIDED for MANUAL (so neutral can be confirmed) and ends by setting back the mode it found.
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
@@ -32,6 +35,7 @@ import numpy as np
 
 from rov_mav.control.controller import Controller
 from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.guided import GuidedStream
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
 from rov_mav.flight.runlog import mission_start_text
@@ -136,9 +140,13 @@ class RunResult:
 class Runner:
     """Flies `mission` with `controller` over `session`; every sink gets log_tick / log_event / close."""
 
-    def __init__(self, session: Session, mission: Mission, controller: Controller, actuation: Actuation,
-                 options: RunOptions, sinks: list, true_disturbance: np.ndarray | None = None):
+    def __init__(self, session: Session, mission: Mission, controller: Controller | None, actuation: Actuation,
+                 options: RunOptions, sinks: list, true_disturbance: np.ndarray | None = None,
+                 guided: GuidedStream | None = None):
         self.session = session
+        self.guided = guided                  # instead of a law: the reference streamed to ArduSub's GUIDED mode
+        self.flight_mode = guided.mode if guided is not None else MANUAL
+        self.found_mode: int | None = None    # the vehicle's mode when the run took it (restored after GUIDED)
         self.mission = mission
         self.controller = controller
         self.actuation = actuation
@@ -322,8 +330,9 @@ class Runner:
         """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
         reference = self.mission.reference(0.0)
         eta = reference[:6] + 0.1
-        self.controller.step(eta, np.zeros(6), reference, self.period)
-        self.controller.reset()
+        if self.controller is not None:
+            self.controller.step(eta, np.zeros(6), reference, self.period)
+            self.controller.reset()
         self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
         self.actuation.command(np.zeros(6))
         self.actuation.reset()
@@ -421,6 +430,9 @@ class Runner:
         self._prove_overrides()
         self._send_neutral()
         self._pump_for(NEUTRAL_HOLD)
+        if self.guided is not None:
+            self._take_over_guided()
+            return
         names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
         passthrough = {name: (float(PASSTHROUGH_BASE + n), self.saved_functions[name][1])
                        for n, name in enumerate(names, 1)}
@@ -436,6 +448,43 @@ class Runner:
             raise Abort("arming failed: the vehicle refused or did not confirm it")
         self.flying_since = s.clock.now()
         self.say("armed in MANUAL")
+
+    def _take_over_guided(self) -> None:
+        """GUIDED, then armed: the outputs stay on their motors (ArduSub's mixer), the neutral overrides held."""
+        s = self.session
+        self.found_mode = s.heartbeat.custom_mode
+        if not s.set_mode(self.flight_mode):
+            raise Abort(f"the vehicle did not enter {mode_name(self.flight_mode)} mode (ArduSub needs a position "
+                        "estimate for it)")
+        self.armed_by_us = True
+        if not s.arm(True):
+            raise Abort("arming failed: the vehicle refused or did not confirm it")
+        self.flying_since = s.clock.now()
+        self.say(f"armed in {mode_name(self.flight_mode)}: SET_POSITION_TARGET_LOCAL_NED (position, velocity, yaw) "
+                 f"at {self.guided.rate:g} Hz of vehicle time")
+
+    def _leave_guided(self) -> list[str]:
+        """Before the neutral step: out of GUIDED to MANUAL (its mixer of the neutral overrides reads 1500), unless
+        someone else already changed the mode."""
+        s = self.session
+        if self.found_mode is None or s.heartbeat is None or s.heartbeat.custom_mode != self.flight_mode:
+            return []
+        self.guided.hold()
+        if s.set_mode(MANUAL):
+            return [f"{mode_name(self.flight_mode)} left for MANUAL (confirmed by HEARTBEAT)"]
+        self.unconfirmed.append("leave GUIDED")
+        return [f"{mode_name(self.flight_mode)} NOT left (no confirmation)"]
+
+    def _restore_mode(self) -> list[str]:
+        """After the disarm: the mode the run found (MANUAL if that was GUIDED)."""
+        s = self.session
+        mode = MANUAL if self.found_mode in (None, self.flight_mode) else self.found_mode
+        if self.found_mode is None or s.heartbeat is None or s.heartbeat.custom_mode == mode:
+            return []
+        if s.set_mode(mode):
+            return [f"mode back to {mode_name(mode)} (confirmed by HEARTBEAT)"]
+        self.unconfirmed.append(f"mode {mode_name(mode)}")
+        return [f"mode NOT back to {mode_name(mode)} (no confirmation)"]
 
     def _prove_overrides(self) -> None:
         """ArduSub takes overrides only from its GCS sysid, and none with RC_OVERRIDE_TIME = 0: before any output
@@ -482,6 +531,8 @@ class Runner:
                 self.stale_episodes += 1
                 if not o.dry_run:
                     self._send_neutral()
+                    if self.guided is not None:
+                        self.guided.hold()
                 if self.stale_episodes <= STALE_REPORTS:
                     more = " (further episodes are counted in the final report)" \
                         if self.stale_episodes == STALE_REPORTS else ""
@@ -523,7 +574,7 @@ class Runner:
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
                 raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)")
-            if msg.custom_mode != MANUAL:
+            if msg.custom_mode != self.flight_mode:
                 mode = mode_name(msg.custom_mode)
                 raise PilotTakeover(f"the vehicle's mode was changed to {mode} by someone else", now)
         elif kind == "RC_CHANNELS" and s.echo.report([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
@@ -568,14 +619,20 @@ class Runner:
         reference = self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
         dt = min(max(state.t - self._prev_t, 0.0), o.stale_periods * self.period)
         self._prev_t = state.t
-        out = self.controller.step(state.eta, state.nu, reference, dt)
-        if self.decoder.voltage is not None:
-            self.actuation.set_voltage(self.decoder.voltage)
-        thrusts, pwm, _ = self.actuation.command(out.tau)
-        self._check_limits(state, reference)
-        if not o.dry_run:
-            self.session.send_override(pwm)
-            self.last_override = self.session.override
+        if self.guided is not None:
+            out, thrusts = self.guided.output, np.full(CHANNELS, np.nan)
+            pwm = self.decoder.servo[:CHANNELS] if self.decoder.servo is not None else np.full(CHANNELS, np.nan)
+            self._check_limits(state, reference)
+            self.guided.tick(state.t, reference, send=not o.dry_run)
+        else:
+            out = self.controller.step(state.eta, state.nu, reference, dt)
+            if self.decoder.voltage is not None:
+                self.actuation.set_voltage(self.decoder.voltage)
+            thrusts, pwm, _ = self.actuation.command(out.tau)
+            self._check_limits(state, reference)
+            if not o.dry_run:
+                self.session.send_override(pwm)
+                self.last_override = self.session.override
         latency = time.perf_counter() - state.received
         age = self.session.clock.now() - state.t
         self._count_tick(state.t, latency)
@@ -650,6 +707,8 @@ class Runner:
                 report.append(f"{label} FAILED: {exc!r}")
                 return None
 
+        if self.guided is not None:
+            report += attempt("leave GUIDED", self._leave_guided) or []
         confirm = HANDOVER_CONFIRM if self.takeover is not None else SAFE_STOP_CONFIRM
         neutral_confirmed = bool(attempt("neutral", lambda: self._neutral(confirm)))
         alive = neutral_confirmed or self._answering()
@@ -694,6 +753,8 @@ class Runner:
             else:
                 report.append("disarm NOT confirmed")
                 self.unconfirmed.append("disarm")
+        if self.guided is not None and self.takeover is None:
+            report += attempt("restore mode", self._restore_mode) or []
         # The motors first, then the GCS sysid: a pilot's joystick must never reach an output on passthrough.
         restore = {name: self.saved_functions[name] for name in self.changed_functions}
         if self.saved_gcs is not None:
