@@ -1,6 +1,8 @@
 """The `rov-mav` command: one subcommand per job, each defined in its own module.
 
-A subcommand module provides `register(subparsers)`, which adds its parser and sets `func(args) -> int`.
+A subcommand module provides `configure(parser)`, which adds its arguments and sets `func(args) -> int`. Only the
+module of the subcommand asked for is imported (each pulls in what its job needs: Numba kernels, SciPy, Rerun...);
+the others appear in `rov-mav --help` by their one-line summary, so every process starts in the time its job needs.
 Whatever the input, the command ends with at most one error line on stderr and no traceback: bad arguments and
 files exit with status 2 (argparse's convention), Ctrl-C outside a run with 130.
 """
@@ -8,21 +10,25 @@ files exit with status 2 (argparse's convention), Ctrl-C outside a run with 130.
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import sys
 from typing import NoReturn
 
 from rov_mav.config import ConfigError
 
-SUBCOMMAND_MODULES = (
-    "rov_mav.commands.simulate",
-    "rov_mav.commands.tune",
-    "rov_mav.commands.bench",
-    "rov_mav.commands.run",
-    "rov_mav.commands.sim_bridge",
-    "rov_mav.commands.analyze",
-    "rov_mav.commands.identify",
-)
+SUBCOMMANDS = {   # name: (module, summary)
+    "simulate": ("rov_mav.commands.simulate", "run a mission offline against the 6-DOF model (no MAVLink)"),
+    "tune": ("rov_mav.commands.tune",
+             "tune a controller's gains by particle swarm optimization on a mission (Sec. II.v)"),
+    "bench": ("rov_mav.commands.bench",
+              "compare controllers: each tuned alike on training scenarios, judged on held-out ones"),
+    "run": ("rov_mav.commands.run",
+            "fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)"),
+    "sim-bridge": ("rov_mav.commands.sim_bridge", "run a simulated ArduSub BlueROV2 Heavy over MAVLink"),
+    "analyze": ("rov_mav.commands.analyze", "review a dive from a run's log folder or any ArduSub .tlog"),
+    "identify": ("rov_mav.commands.identify", "fit the vehicle model to run logs and write a vehicle file"),
+}
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -37,20 +43,25 @@ def one_line(text: str) -> str:
     return text.replace("\r", "\\r").replace("\n", "\\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser, with `command`'s arguments (every subcommand's with None, as `--help` pages need)."""
     parser = OneLineParser(
         prog="rov-mav",
         description="Fly a BlueROV2 Heavy (ArduSub, real or SITL, or the built-in simulator) along planned "
         "trajectories with the fuzzy-adaptive backstepping law.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in SUBCOMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    for name, (module, summary) in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=summary)
+        if command in (None, name):
+            importlib.import_module(module).configure(p)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    command = argv[0] if argv and argv[0] in SUBCOMMANDS else ""
+    args = build_parser(command).parse_args(argv)
     prog = f"rov-mav {args.command}"
     try:
         return int(args.func(args) or 0)
@@ -69,5 +80,14 @@ def _fail(prog: str, message: str, status: int) -> int:
     return status
 
 
+def entry() -> NoReturn:
+    """The `rov-mav` console script: `main`, then the interpreter's normal exit without its last garbage collection
+    (`gc.freeze`): on a loaded machine that collection of the compiled kernels' objects took seconds, after the
+    vehicle was already left safe and every file closed."""
+    status = main()
+    gc.freeze()
+    sys.exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

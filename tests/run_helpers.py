@@ -34,10 +34,12 @@ environment:
 
 
 class RunnerProcess:
-    """`rov-mav run ARGS` in a subprocess; its output (stdout and stderr) is collected line by line."""
+    """`rov-mav run ARGS` in a subprocess; its output (stdout and stderr) is collected line by line. Without a
+    `--rerun` among ARGS the run records no telemetry (`--rerun off`): Rerun's own tests stream and save runs, and a
+    recording at --speedup 10 would take a core from the loop the other tests measure."""
 
     def __init__(self, *args: str):
-        self.args = [ROV_MAV, "run", *args]
+        self.args = [ROV_MAV, "run", *args, *(() if "--rerun" in args else ("--rerun", "off"))]
         self.lines: list[str] = []
         self.proc: subprocess.Popen | None = None
         self._changed = threading.Condition()

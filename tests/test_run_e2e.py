@@ -1,10 +1,14 @@
-"""`rov-mav run` flies the square to completion over real MAVLink: against `rov-mav sim-bridge` in another process,
-and against the built-in vehicle in its own process; the vehicle is left disarmed, neutral, parameters restored."""
+"""`rov-mav run` flies the square to completion over real MAVLink: the pool square against the built-in vehicle in its
+own process, and the same square scaled to 2 m sides against `rov-mav sim-bridge` in another process; the vehicle is
+left disarmed, neutral, parameters restored."""
 
 from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
+
+import yaml
 
 os.environ["MAVLINK20"] = "1"
 from conftest import MISSIONS  # noqa: E402
@@ -20,8 +24,22 @@ from run_helpers import (  # noqa: E402
 
 SQUARE = str(MISSIONS / "square.yaml")
 STEADY_RMS_LIMIT = 0.05       # m
-SQUARE_SPEEDUP = 5.0          # the 228 s square in 46 s: at 10x a loaded 2-core machine starved the runner for
-                              # 0.4-0.6 s of vehicle time, and a starved loop oscillates (README, soak)
+SQUARE_SPEEDUP = 5.0          # at 10x a loaded 2-core machine starved the runner for 0.4-0.6 s of vehicle time,
+                              # and a starved loop oscillates (README, soak)
+SMALL_SCALE = 0.2             # the pool square's sides, 10 m, to 2 m: 4 x (10 + 2) s + 4 x 5 s = 68 s
+
+
+def small_square(directory: Path) -> Path:
+    """missions/square.yaml with its corners SMALL_SCALE as far from the start: same speed, ramps, turns, depth and
+    disturbance."""
+    mission = yaml.safe_load(Path(SQUARE).read_text())
+    for segment in mission["path"]:
+        if "goto" in segment:
+            x, y, z = segment["goto"]
+            segment["goto"] = [x * SMALL_SCALE, y * SMALL_SCALE, z]
+    path = directory / "small_square.yaml"
+    path.write_text(yaml.safe_dump(mission))
+    return path
 
 
 def _loop_line(metrics: dict, label: str) -> str:
@@ -38,7 +56,8 @@ def test_square_against_a_bridge_process(tmp_path):
     metrics_path = tmp_path / "metrics.json"
     # The runner starts first and waits for the vehicle: the square's disturbance sinks an idle vehicle, so the
     # bridge should not idle long before the runner takes over.
-    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", SQUARE, "--controller", "fuzzy",
+    mission = str(small_square(tmp_path))
+    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", mission, "--controller", "fuzzy",
                        "--metrics", str(metrics_path), "--log", str(tmp_path / "log"),
                        "--heartbeat-timeout", "60") as run, bridge:
         gcs = checker(checker_port, SQUARE_SPEEDUP)
@@ -52,7 +71,7 @@ def test_square_against_a_bridge_process(tmp_path):
     assert flying != [1500] * 8                     # it really drove the thrusters, then let them go
     metrics = json.loads(metrics_path.read_text())
     print(_loop_line(metrics, f"square vs bridge process at {SQUARE_SPEEDUP:g}x"))
-    assert metrics["completed"] and metrics["duration_s"] >= 227.9
+    assert metrics["completed"] and metrics["duration_s"] >= 67.9
     assert metrics["rms_position_error_steady_m"] <= STEADY_RMS_LIMIT, run.output
     assert "neutral 1500 us on channels 1-8: sent, confirmed by SERVO_OUTPUT_RAW" in run.output
     # the run log: ticks with the controller's internals, and the raw traffic both ways

@@ -44,9 +44,8 @@ arguments.
 MODES_SHOWN = 8          # mode/arming changes printed before "... and N more"
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("analyze", help="review a dive from a run's log folder or any ArduSub .tlog",
-                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+def configure(p: argparse.ArgumentParser) -> None:
+    p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("path", metavar="PATH", help="a run's --log folder, or a telemetry log (.tlog)")
     p.add_argument("--mission", metavar="FILE", help=f"measure the dive against this {MISSION_HELP}")
     p.add_argument("--mission-start", type=number(0.0), metavar="S",

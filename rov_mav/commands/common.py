@@ -145,6 +145,8 @@ def rerun_recording(args: argparse.Namespace, default_file: str | Path, referenc
     from rov_mav import telemetry
 
     target = args.rerun or telemetry.default_target(default_file)
+    if target.mode == "off":
+        return target, None
     blueprint = telemetry.default_blueprint(reference_path, tuning)
     try:
         return target, telemetry.open_recording(target, blueprint)

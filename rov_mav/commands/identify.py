@@ -40,9 +40,8 @@ exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot gi
 MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's thrusters could hold down or up
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("identify", help="fit the vehicle model to run logs and write a vehicle file",
-                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+def configure(p: argparse.ArgumentParser) -> None:
+    p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("logs", nargs="+", metavar="LOG_DIR", help="run log directories (`rov-mav run --log DIR`)")
     p.add_argument("--out", required=True, type=output_file, metavar="FILE", help="vehicle file to write")
     p.add_argument("--vehicle", metavar="FILE",

@@ -92,9 +92,8 @@ safe-stop step not confirmed (named); 2 bad arguments or files;
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="fly a mission over MAVLink (ArduSub, SITL, or the built-in simulated vehicle)",
-                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+def configure(p: argparse.ArgumentParser) -> None:
+    p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("mission", nargs="?", help=MISSION_HELP)
     p.add_argument("--mission-from-vehicle", action="store_true",
                    help="instead of a file, fly the mission stored on the vehicle (uploaded with QGroundControl or "

@@ -87,10 +87,8 @@ def _param(text: str) -> tuple[str, float]:
     return name.strip().upper(), number
 
 
-def register(subparsers) -> None:
-    p = subparsers.add_parser("sim-bridge", help="run a simulated ArduSub BlueROV2 Heavy over MAVLink",
-                              description=DESCRIPTION, epilog=EPILOG,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+def configure(p: argparse.ArgumentParser) -> None:
+    p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("--out", action="append", default=[], type=endpoint(("udpout",)), metavar="udpout:HOST:PORT",
                    help=f"send to a ground station at HOST:PORT, as a vehicle does (repeatable; default "
                         f"{DEFAULT_OUT} when no --out or --listen is given)")

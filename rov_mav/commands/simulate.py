@@ -19,12 +19,10 @@ from rov_mav.commands.common import (
 from rov_mav.mission.missions import MAX_DURATION
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "simulate", help="run a mission offline against the 6-DOF model (no MAVLink)",
-        description="Run the closed loop (mission reference -> law + adaptation -> 6-DOF plant) offline at "
-                    "100 Hz, using the mission file's `environment` block (disturbance, current, noise; a .plan: still water). "
-                    "Writes figures (PNG) to --out and metrics (JSON) to --metrics.")
+def configure(p: argparse.ArgumentParser) -> None:
+    p.description = ("Run the closed loop (mission reference -> law + adaptation -> 6-DOF plant) offline at "
+                     "100 Hz, using the mission file's `environment` block (disturbance, current, noise; a .plan: still water). "
+                     "Writes figures (PNG) to --out and metrics (JSON) to --metrics.")
     p.add_argument("mission", help=MISSION_HELP)
     add_plan_options(p)
     add_controller_options(p)

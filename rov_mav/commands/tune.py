@@ -58,15 +58,13 @@ def bounds_pair(text: str) -> tuple[float, float]:
     return lo, hi
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def configure(p: argparse.ArgumentParser) -> None:
     defaults = pso.PSOOptions()
-    p = sub.add_parser(
-        "tune", help="tune a controller's gains by particle swarm optimization on a mission (Sec. II.v)",
-        description="Particle swarm optimization of the controller's gains (the report's law: k1, k2, Eqs. "
-                    "2.30-2.33; pid, smc, ismc: the groups their gains files list first): each iteration simulates the "
-                    "whole swarm (x scenarios) through the compiled closed loop. Writes a gains YAML that "
-                    "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
-                    "against the starting gains (default: the report's Eqs. 4.1-4.2) on the mission.")
+    p.description = ("Particle swarm optimization of the controller's gains (the report's law: k1, k2, Eqs. "
+                     "2.30-2.33; pid, smc, ismc: the groups their gains files list first): each iteration simulates the "
+                     "whole swarm (x scenarios) through the compiled closed loop. Writes a gains YAML that "
+                     "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
+                     "against the starting gains (default: the report's Eqs. 4.1-4.2) on the mission.")
     p.add_argument("mission", help=MISSION_HELP + "; the report's tuning run is missions/line.yaml")
     add_plan_options(p)
     add_controller_options(p)

@@ -18,7 +18,6 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from rov_mav.model.vehicle import QuadraticCurve, Vehicle
 
@@ -375,7 +374,10 @@ class Allocator:
         return f, info
 
     def _bounded(self, tau: np.ndarray) -> np.ndarray:
-        """Thrusts (n,) in [f_min, f_max] minimising ||W (B f - tau)||_2 for one wrench tau (6,)."""
+        """Thrusts (n,) in [f_min, f_max] minimising ||W (B f - tau)||_2 for one wrench tau (6,). (SciPy's optimizers
+        load here, on the first saturated wrench, not with the model: the bridge and `analyze` never need them.)"""
+        from scipy.optimize import lsq_linear
+
         result = lsq_linear(self._weighted_matrix, self.weights * tau, bounds=(self.f_min, self.f_max), method="bvls")
         return np.clip(result.x, self.f_min, self.f_max)
 

@@ -1,19 +1,31 @@
 """Live and recorded telemetry in the Rerun viewer: entities (`entities`), default layout (`blueprint`), where it
-goes (`target`), the runner's non-blocking sink (`live`) and whole offline runs (`trace`)."""
+goes (`target`: parsing only), opening it (`recording`), the runner's non-blocking sink (`live`) and whole offline
+runs (`trace`).
 
-from rov_mav.telemetry.blueprint import default_blueprint
-from rov_mav.telemetry.entities import TIMELINE, TickColumns, send_convergence
-from rov_mav.telemetry.live import RerunSink, SinkStats
-from rov_mav.telemetry.target import (
-                                     RerunTarget,
-                                     ViewerUnavailable,
-                                     default_target,
-                                     finish,
-                                     open_recording,
-                                     parse_target,
-)
-from rov_mav.telemetry.trace import log_trace, mission_events, trace_columns
+The names below load their module (and with it the Rerun SDK) on first use, so that a command that only parses
+`--rerun off` never imports Rerun."""
 
-__all__ = ["TIMELINE", "RerunSink", "RerunTarget", "SinkStats", "TickColumns", "ViewerUnavailable", "default_blueprint",
-           "default_target", "finish", "log_trace", "mission_events", "open_recording", "parse_target",
-           "send_convergence", "trace_columns"]
+from __future__ import annotations
+
+import importlib
+
+_MODULE_OF = {
+    "default_blueprint": "blueprint",
+    "TIMELINE": "entities", "TickColumns": "entities", "send_convergence": "entities",
+    "RerunSink": "live", "SinkStats": "live",
+    "RerunTarget": "target", "default_target": "target", "parse_target": "target",
+    "ViewerUnavailable": "recording", "finish": "recording", "open_recording": "recording",
+    "log_trace": "trace", "mission_events": "trace", "trace_columns": "trace",
+}
+
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str):
+    """A name above from its module, or a submodule itself (`telemetry.target`), imported on first use."""
+    if name in set(_MODULE_OF.values()):
+        return importlib.import_module(f"{__name__}.{name}")
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
