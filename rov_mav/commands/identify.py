@@ -16,11 +16,12 @@ Fit the vehicle model the controller uses to one or more run logs (`rov-mav run 
 missions/identify.yaml flown on the vehicle to identify, and write it as a vehicle file that --vehicle accepts.
 
 Fitted, as far as the logs can tell them apart: added mass, linear and quadratic damping (per DOF), buoyancy and
-its lever r_b - r_g, the thrusters' force per PWM (a scale on the T200 data, forward and reverse) and their moment
-arms (roll, pitch, yaw), plus the delay from command to thrust. Mass, inertia and the centre of gravity come from
-the prior (--vehicle), which also stands wherever the data cannot see: each parameter is printed with its 95 %
-confidence interval, or with the reason it kept the prior, and each DOF with how much of its force the model
-explains (R^2) and the residual left (RMS).
+its lever r_b - r_g, the thrusters' force per PWM (a scale on the vehicle file's curve, forward and reverse, and the
+horizontal thrusters' scale against the vertical ones), their moment arms (roll, pitch, yaw) and the horizontal
+thrusters' height (their roll and pitch arm), plus the delay from command to thrust. Mass, inertia and the
+centre of gravity come from the prior (--vehicle), which also stands wherever the data cannot see: each parameter
+is printed with its 95 % confidence interval, or with the reason it kept the prior, and each DOF with how much of
+its force the model explains (R^2) and the residual left (RMS).
 
 One number cannot come from motion: scaling every force of the model and the thrust together changes nothing the
 vehicle does. The thrusters' bench data set that level unless --net-buoyancy gives the vehicle's weight in water

@@ -72,8 +72,11 @@ class _SegmentSchema(config.StrictModel):
     @model_validator(mode="after")
     def _one_kind(self) -> "_SegmentSchema":
         kinds = [k for k in SEGMENT_KINDS if getattr(self, k) is not None]
+        if kinds == ["goto", "excite"]:
+            return self._check_moving_excite()
         if len(kinds) != 1:
-            raise ValueError("each path entry needs exactly one of " + ", ".join(SEGMENT_KINDS))
+            raise ValueError("each path entry needs exactly one of " + ", ".join(SEGMENT_KINDS)
+                             + " (or an excite on a goto)")
         kind = kinds[0]
         if kind == "excite":
             return self._check_excite()
@@ -93,11 +96,28 @@ class _SegmentSchema(config.StrictModel):
             raise ValueError("a line needs a non-zero velocity")
         return self
 
+    def _check_moving_excite(self) -> "_SegmentSchema":
+        """An excite on a goto: the multisine rides on the move, over the goto's duration (couplings between a
+        translation and a rotation: the Coriolis forces of pitching while surging, rolling while swaying)."""
+        if self.speed is None or self.amplitude is None or self.band is None:
+            raise ValueError("an excite on a goto needs the goto's speed, an amplitude and a band [low, high] (Hz)")
+        if self.duration is not None:
+            raise ValueError("an excite on a goto lasts the goto: no duration")
+        if self.heading is not None:
+            raise ValueError("an excite on a goto keeps the heading: turn in a hold before it")
+        return self._check_signal()
+
     def _check_excite(self) -> "_SegmentSchema":
         if self.duration is None or self.amplitude is None or self.band is None:
             raise ValueError("an excite needs a duration (s), an amplitude and a band [low, high] (Hz)")
         if self.speed is not None or self.heading is not None:
             raise ValueError("an excite holds the pose: no speed or heading")
+        if self.band[0] * self.duration < 1.0:
+            raise ValueError(f"an excite of {self.duration:g} s is shorter than one period of its lowest "
+                             f"frequency ({self.band[0]:g} Hz)")
+        return self._check_signal()
+
+    def _check_signal(self) -> "_SegmentSchema":
         if self.excite in TRANSLATIONS and isinstance(self.amplitude, str):
             raise ValueError(f"an excite on {self.excite} takes its amplitude in m, a number")
         if not _amplitude(self.excite, self.amplitude) > 0:
@@ -105,9 +125,6 @@ class _SegmentSchema(config.StrictModel):
         low, high = self.band
         if not low < high:
             raise ValueError("an excite's band must be [low, high] with low < high (Hz)")
-        if low * self.duration < 1.0:
-            raise ValueError(f"an excite of {self.duration:g} s is shorter than one period of its lowest "
-                             f"frequency ({low:g} Hz)")
         return self
 
 
@@ -273,7 +290,15 @@ def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> lis
             if length < 1e-6:
                 raise config.ConfigError(f"{where}.goto: zero-length segment (same point as the previous one)")
             ramp = min(spec.ramp_time, length / entry.speed)
-            seg = Segment(t, length / entry.speed + ramp, pose, target, ramp, ramp, False)
+            duration = length / entry.speed + ramp
+            signal = None
+            if entry.excite is not None:
+                if entry.band[0] * duration < 1.0:
+                    raise config.ConfigError(f"{where}: the goto lasts {duration:.3g} s, shorter than one period of "
+                                             f"its excite's lowest frequency ({entry.band[0]:g} Hz)")
+                signal = excitation(entry.excite, entry.signal, _amplitude(entry.excite, entry.amplitude),
+                                    tuple(entry.band), duration, float(pose[3]))
+            seg = Segment(t, duration, pose, target, ramp, ramp, False, signal)
         elif entry.excite is not None:
             signal = excitation(entry.excite, entry.signal, _amplitude(entry.excite, entry.amplitude),
                                 tuple(entry.band), entry.duration, float(pose[3]))

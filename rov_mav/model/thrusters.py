@@ -261,11 +261,15 @@ def _scaled_t200(forward: float, reverse: float) -> ThrusterMap:
 
 def thruster_curve(vehicle: Vehicle) -> ThrusterMap:
     """What the vehicle's thrusters push: its file's quadratic law or the shipped T200 data, scaled by its
-    `thrust_scale` (forward, reverse)."""
+    `thrust_scale` (forward, reverse) and, when they differ from 1, its `per_thruster_scale` (then the map takes
+    and gives (..., 8) arrays)."""
     forward, reverse = (float(v) for v in vehicle.thrust_scale)
+    each = np.asarray(vehicle.per_thruster_scale, dtype=float)
     if vehicle.thruster_curve is None:
-        return _scaled_t200(forward, reverse)
-    return ThrusterMap.quadratic(vehicle.thruster_curve).scaled(forward, reverse)
+        curve = _scaled_t200(forward, reverse)
+        return curve if np.all(each == 1.0) else load_t200().scaled(forward * each, reverse * each)
+    curve = ThrusterMap.quadratic(vehicle.thruster_curve)
+    return curve.scaled(forward, reverse) if np.all(each == 1.0) else curve.scaled(forward * each, reverse * each)
 
 
 def pwms_to_thrusts(pwms: np.ndarray, voltage: float, t200: ThrusterMap | None = None) -> np.ndarray:

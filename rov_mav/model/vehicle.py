@@ -49,6 +49,7 @@ class _ThrusterSchema(config.StrictModel):
     directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
     time_constant: Annotated[float, Field(ge=0, le=10.0)]
     thrust_scale: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
+    per_thruster_scale: Annotated[list[Positive], Field(min_length=8, max_length=8)] = [1.0] * 8
     curve: _CurveSchema | None = None          # "t200" or absent: the Blue Robotics T200 data
 
     @field_validator("curve", mode="before")
@@ -136,6 +137,7 @@ class Vehicle:
     thruster_directions: np.ndarray   # (8, 3)
     thruster_time_constant: float
     thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the curve
+    per_thruster_scale: np.ndarray = field(default_factory=lambda: np.ones(8))   # (8,) each thruster's, x the above
     thruster_curve: QuadraticCurve | None = None   # None: the Blue Robotics T200 data at the battery voltage
 
     @property
@@ -220,6 +222,7 @@ class Vehicle:
                 "directions": floats(self.thruster_directions),
                 "time_constant": float(self.thruster_time_constant),
                 "thrust_scale": floats(self.thrust_scale),
+                "per_thruster_scale": floats(self.per_thruster_scale),
             } | ({} if self.thruster_curve is None else {"curve": self.thruster_curve.document()}),
         }
 
@@ -250,6 +253,7 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
         thruster_directions=np.array(s.thrusters.directions, dtype=float),
         thruster_time_constant=s.thrusters.time_constant,
         thrust_scale=np.array(s.thrusters.thrust_scale, dtype=float),
+        per_thruster_scale=np.array(s.thrusters.per_thruster_scale, dtype=float),
         thruster_curve=_curve(s.thrusters.curve),
     )
 

@@ -10,13 +10,21 @@ vehicle; thrust configuration matrix), written with its unknowns theta:
     D(nu) = diag(D_l) + diag(D_q) |nu|         (Appendix I.3, Eq. 2.10)
     g(eta): force -(W - B) rho, moment -((W - B) r_g - B lambda) x rho, rho = R^T e_z, lambda = r_b - r_g
                                                (Appendix I.4; W = m g known, B and lambda unknown)
-    tau = B(sigma) (k_fwd F+ + k_rev F-)       (`thrusters.allocation_matrix`; F = the T200 data's thrust at the
-                                                sent PWM and the logged voltage, split by sign, delayed by the link
-                                                and lagged by the thrusters' time constant)
+    tau = B(sigma, h) G(g) (k_fwd F+ + k_rev F-)
+                                               (`thrusters.allocation_matrix`; F = the bench curve's thrust (T200
+                                                data or the file's quadratic law) at the sent PWM and the logged
+                                                voltage, split by sign, delayed by the link and lagged by the
+                                                thrusters' time constant)
 
-theta = [A (6), D_l (6), D_q (6), B, lambda (3), k_fwd, k_rev, sigma (3)]; B(sigma) is the allocation matrix with
-three moment arms scaled: the vertical thrusters' lateral arm (roll), their longitudinal arm (pitch), the horizontal
-thrusters' planar arms (yaw), each touching only its own moment row.
+theta = [A (6), D_l (6), D_q (6), B, lambda (3), k_fwd, k_rev, sigma (3), g h, g]; B(sigma, h) is the allocation
+matrix with three moment arms scaled -- the vertical thrusters' lateral arm (roll), their longitudinal arm (pitch),
+the horizontal thrusters' planar arms (yaw), each touching only its own moment row -- and the horizontal thrusters
+moved to the mean height h (their roll and pitch arm: a horizontal force below the origin rolls and pitches the
+hull). G(g) = diag(per-thruster scale), the horizontal group's scaled to mean g: thrusters of one kind but two
+mountings (or, on ArduPilot's SITL, two force laws) need not push alike per PWM. The height enters theta as the
+product g h, the roll and pitch moment per newton of bench thrust: the roll and pitch balances see that product
+whatever the level of the horizontal forces, which only the weaker couplings to the rigid body show (so g and h
+as such would be collinear).
 
 Integral form: over consecutive windows [t_a, t_b] of each unbroken stretch of a run,
 
@@ -187,7 +195,7 @@ class Flights:
     """The runs cut into windows, as measured and as the reference asked; thrust integrals for any delay."""
 
     def __init__(self, runs: list[Run], prior: Vehicle, window: float, smoothing: float):
-        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2)))
+        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2), per_thruster_scale=np.ones(8)))
         self.lag = prior.thruster_time_constant
         rigid = prior.rigid_body_mass_matrix
         self.pieces: list[Piece] = []
@@ -241,12 +249,18 @@ class Flights:
         commands = []
         for p in self.pieces:
             thrust = np.einsum("ij,nj->ni", allocate, feedforward(vehicle, p.reference))
-            commands.append(thrust / np.where(thrust > 0, vehicle.thrust_scale[0], vehicle.thrust_scale[1]))
+            scale = np.where(thrust > 0, vehicle.thrust_scale[0], vehicle.thrust_scale[1]) * vehicle.per_thruster_scale
+            commands.append(thrust / scale)
         return commands
 
     def reference_windows(self, delay: float, demand: list[np.ndarray]) -> Windows:
         """The reference's windows with a `demand`ed thrust: the instruments, free of sensor noise."""
         return Windows(**self.asked, **self._thrust(demand, delay, False))
+
+
+def horizontal(vehicle: Vehicle) -> np.ndarray:
+    """(8,) which thrusters push in the body's x-y plane (the group whose height and scale theta holds)."""
+    return np.abs(vehicle.thruster_directions[:, 2]) < 0.1
 
 
 class Balance:
@@ -260,9 +274,9 @@ class Balance:
         self.r_g = prior.center_of_gravity
         r, e = prior.thruster_positions, prior.thruster_directions
         vertical = np.abs(e[:, 2]) > 0.9
-        horizontal = np.abs(e[:, 2]) < 0.1
+        self.horizontal = horizontal(prior)
         self.positions, self.masks = r, []
-        for mask in (vertical[:, None] * [0, 1, 0], vertical[:, None] * [1, 0, 0], horizontal[:, None] * [1, 1, 0]):
+        for mask in (vertical[:, None] * [0, 1, 0], vertical[:, None] * [1, 0, 0], self.horizontal[:, None] * [1, 1, 0]):
             self.masks.append(mask.astype(float))
         self.b0 = allocation_matrix(r, e)
         self.b_arm = []
@@ -270,28 +284,42 @@ class Balance:
             arm = allocation_matrix(r * mask, e)
             arm[:3] = 0.0
             self.b_arm.append(arm)
+        self.b_height = allocation_matrix(self.horizontal[:, None] * [0.0, 0.0, 1.0], e)   # per m of height
+        self.b_height[:3] = 0.0
+        moment, self.group0 = theta_of(prior)[27:29]
+        self.height0 = float(moment / self.group0)
+        self.b0 -= self.height0 * self.b_height
+        self.base = prior.per_thruster_scale / np.where(self.horizontal, self.group0, 1.0)
 
     def _matrix(self, arms: np.ndarray) -> np.ndarray:
+        """The allocation matrix without the horizontal thrusters' roll and pitch moments (their height's)."""
         return self.b0 + sum((s - 1.0) * b for s, b in zip(arms, self.b_arm))
+
+    def gain(self, theta: np.ndarray) -> np.ndarray:
+        """(8,) each thruster's scale on the bench thrust (the vehicle's per_thruster_scale)."""
+        return self.base * np.where(self.horizontal, theta[28], 1.0)
+
+    def _thrust_side(self, theta: np.ndarray, thrust: np.ndarray) -> np.ndarray:
+        """(W, 6) the wrench of bench thrusts (W, 8) times the thrust scales: k (per direction) already in."""
+        return (np.einsum("wj,ij->wi", self.gain(theta) * thrust, self._matrix(theta[24:27]))
+                + theta[27] * np.einsum("wj,ij->wi", self.base * thrust, self.b_height))
 
     def sides(self, theta: np.ndarray, w: Windows) -> tuple[np.ndarray, np.ndarray]:
         """(model side, thrust side), each (W, 6), as mean force over each window (N, N m)."""
         A, Dl, Dq = theta[0:6], theta[6:12], theta[12:18]
         buoyancy, lever = theta[18], theta[19:22]
-        k_fwd, k_rev, arms = theta[22], theta[23], theta[24:27]
         lhs = (np.einsum("wj,ij->wi", w.dnu, self.rigid) + A * w.dnu + np.einsum("wpi,p->wi", w.coriolis_unit, A)
                + w.coriolis_rigid + Dl * w.nu + Dq * w.nu_abs)
         net = self.weight - buoyancy
         lhs[:, :3] -= net * w.rho
         lhs[:, 3:] -= np.cross(net * self.r_g - buoyancy * lever, w.rho)
-        rhs = np.einsum("wj,ij->wi", k_fwd * w.thrust_pos + k_rev * w.thrust_neg, self._matrix(arms))
+        rhs = self._thrust_side(theta, theta[22] * w.thrust_pos + theta[23] * w.thrust_neg)
         d = w.duration[:, None]
         return lhs / d, rhs / d
 
     def jacobian(self, theta: np.ndarray, w: Windows) -> np.ndarray:
-        """d(model side - thrust side)/d theta, (W, 6, 27): exact, the model being at most bilinear."""
+        """d(model side - thrust side)/d theta, (W, 6, 29): exact, the model being at most bilinear."""
         buoyancy, lever = theta[18], theta[19:22]
-        k_fwd, k_rev, arms = theta[22], theta[23], theta[24:27]
         n = len(w.duration)
         jac = np.zeros((n, 6, len(theta)))
         dof = np.arange(6)
@@ -303,27 +331,36 @@ class Balance:
         jac[:, 3:, 18] = np.cross(self.r_g + lever, w.rho)
         for j in range(3):
             jac[:, 3:, 19 + j] = buoyancy * np.cross(np.eye(3)[j], w.rho)
-        matrix = self._matrix(arms)
-        jac[:, :, 22] = -np.einsum("wj,ij->wi", w.thrust_pos, matrix)
-        jac[:, :, 23] = -np.einsum("wj,ij->wi", w.thrust_neg, matrix)
-        thrust = k_fwd * w.thrust_pos + k_rev * w.thrust_neg
+        jac[:, :, 22] = -self._thrust_side(theta, w.thrust_pos)
+        jac[:, :, 23] = -self._thrust_side(theta, w.thrust_neg)
+        bench = theta[22] * w.thrust_pos + theta[23] * w.thrust_neg
+        thrust = self.gain(theta) * bench
         for s, b in enumerate(self.b_arm):
             jac[:, :, 24 + s] = -np.einsum("wj,ij->wi", thrust, b)
+        jac[:, :, 27] = -np.einsum("wj,ij->wi", self.base * bench, self.b_height)
+        jac[:, :, 28] = -np.einsum("wj,ij->wi", self.base * self.horizontal * bench, self._matrix(theta[24:27]))
         return jac / w.duration[:, None, None]
 
     def vehicle(self, theta: np.ndarray) -> Vehicle:
-        """The prior with theta's values in (volume from B, r_b from the lever, thruster positions from the arms)."""
+        """The prior with theta's values in (volume from B, r_b from the lever, thruster positions from the arms and
+        the horizontal thrusters' height, per-thruster scales from the horizontal group's)."""
         p = self.prior
         arms = theta[24:27]
+        positions = self.positions * (1.0 + sum((s - 1.0) * m for s, m in zip(arms, self.masks)))
+        positions[self.horizontal, 2] += theta[27] / theta[28] - self.height0
         return replace(
             p, added_mass=theta[0:6].copy(), linear_damping=theta[6:12].copy(), quadratic_damping=theta[12:18].copy(),
             volume=float(theta[18] / (p.water_density * p.gravity)),
             center_of_buoyancy=p.center_of_gravity + theta[19:22], thrust_scale=theta[22:24].copy(),
-            thruster_positions=self.positions * (1.0 + sum((s - 1.0) * m for s, m in zip(arms, self.masks))))
+            thruster_positions=positions, per_thruster_scale=self.gain(theta))
 
 
 def theta_of(vehicle: Vehicle) -> np.ndarray:
-    """A vehicle's theta (27,), its moment arms at 1."""
+    """A vehicle's theta (29,): its moment arms at 1; its horizontal thrusters' scale g (their mean) and the roll
+    and pitch arm of their thrust, g times their mean height."""
     lever = vehicle.center_of_buoyancy - vehicle.center_of_gravity
+    group = horizontal(vehicle)
+    height = float(vehicle.thruster_positions[group, 2].mean()) if group.any() else 0.0
+    scale = float(vehicle.per_thruster_scale[group].mean()) if group.any() else 1.0
     return np.concatenate([vehicle.added_mass, vehicle.linear_damping, vehicle.quadratic_damping, [vehicle.buoyancy],
-                           lever, vehicle.thrust_scale, np.ones(3)])
+                           lever, vehicle.thrust_scale, np.ones(3), [scale * height, scale]])

@@ -1,7 +1,8 @@
 """System identification: the vehicle model fitted to flown runs (`rov-mav identify`). Pure numpy/scipy.
 
 The regression is `force_balance`'s: the report's Eq. 2.7 integrated over windows, with the unknowns theta (added
-mass, linear and quadratic damping, buoyancy and its lever r_b - r_g, the thrust scale each way, three moment arms);
+mass, linear and quadratic damping, buoyancy and its lever r_b - r_g, the thrust scale each way, three moment arms,
+the horizontal thrusters' height and their scale relative to the vertical ones);
 mass, inertia and the centre of gravity are the prior's. Solved jointly over the six DOFs (they share A through the
 Coriolis terms, the thrust scales through tau, lambda_z through roll and pitch), each DOF weighted by its residual:
 
@@ -19,13 +20,16 @@ What the data cannot tell apart, and what is done about it (each such parameter 
 - the level: scaling M, D, W - B, B lambda and the thrust by one factor leaves every equation unchanged when M_RB is
   diagonal (r_g = 0): motion shows forces only relative to the thrust. One number must come from elsewhere: the
   forward thrust scale stays the prior's (the thrusters' bench data), or a measured net buoyancy (the vehicle's
-  weight in water) fixes B and frees the thrust scale.
+  weight in water) fixes B and frees the thrust scale. The horizontal group's scale is relative to the others' (the
+  vertical thrusters'): the heave balance sees those, the horizontal ones are told apart from the added mass and
+  damping they drive by the known rigid body (its mass in the Coriolis forces of turning while moving, its inertia)
+  and the couplings to heave, roll and pitch.
 - before fitting, on the noise-free design (the reference, the prior's thrust): parameters the reference never
   exercises; then, one at a time, a direction the data cannot see at all (rank) or a parameter too collinear with
   others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it.
 - after fitting, one at a time: a parameter whose 95 % interval is wider than its precision (10 % of its size, 1 %
-  for a moment arm, or an absolute floor scaled by the rigid body), then one that crossed its lower bound (held at
-  the bound).
+  for a moment arm and 1 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
+  the rigid body), then one that crossed its lower bound (held at the bound).
 """
 
 from __future__ import annotations
@@ -51,11 +55,13 @@ FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's m
 NOT_EXCITED = 1e-6            # a parameter whose forces are this small beside the largest one's is not excited
 VIF_MAX = 1.0e4               # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
-ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw")
+ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw", "arm_horizontal_z")
 # Lower bounds of theta: added mass, damping, buoyancy and arms are not negative (the vehicle file's rules), a thrust
 # scale is positive (the instruments divide by it); the lever is free.
 MIN_THRUST_SCALE = 0.05
-LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3)])
+HEIGHT = 27                   # theta's index of the horizontal thrusters' g h (the next is g)
+LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3), [-np.inf],
+                        [MIN_THRUST_SCALE]])
 
 
 @dataclass(frozen=True)
@@ -109,7 +115,10 @@ def _parameters(prior: Vehicle) -> list[_Parameter]:
     out += [_Parameter("buoyancy", "N", 1e-3 * prior.weight)]
     out += [_Parameter(f"lever.{a}", "m", 5e-4) for a in "xyz"]
     out += [_Parameter("thrust_scale.forward", "", 0.01), _Parameter("thrust_scale.reverse", "", 0.01)]
-    out += [_Parameter(name, "", 0.0, ARM_PRECISION) for name in ARM_ORDER]
+    out += [_Parameter(name, "", 0.0, ARM_PRECISION) for name in ARM_ORDER[:3]]
+    reach = float(np.abs(prior.thruster_positions).max())
+    out += [_Parameter("arm_horizontal_z", "m", ARM_PRECISION * reach, 0.0),
+            _Parameter("thrust_scale.horizontal", "", 0.01)]
     return out
 
 
@@ -237,8 +246,11 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         theta = fit.theta
         break
     widths, priors = dict(zip(index, half)), theta_of(prior)
-    estimates = tuple(Estimate(p.name, p.unit, float(theta[i]), float(priors[i]), float(widths.get(i, np.nan)),
-                               status.get(p.name, "fitted")) for i, p in enumerate(params))
+    per = np.ones((2, len(theta)))              # theta holds g h: the height is printed as h
+    per[:, HEIGHT] = theta[HEIGHT + 1], priors[HEIGHT + 1]
+    estimates = tuple(Estimate(p.name, p.unit, float(theta[i] / per[0, i]), float(priors[i] / per[1, i]),
+                               float(widths.get(i, np.nan) / per[0, i]), status.get(p.name, "fitted"))
+                      for i, p in enumerate(params))
     return Identification(model.vehicle(theta), estimates, _fits(*model.sides(theta, windows)), float(delay),
                           int(len(windows.duration)), duration)
 
