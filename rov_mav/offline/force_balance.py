@@ -290,6 +290,7 @@ class Balance:
         self.height0 = float(moment / self.group0)
         self.b0 -= self.height0 * self.b_height
         self.base = prior.per_thruster_scale / np.where(self.horizontal, self.group0, 1.0)
+        self.hold_height = False    # True: the horizontal thrusters stay at the prior's height whatever their scale
 
     def _matrix(self, arms: np.ndarray) -> np.ndarray:
         """The allocation matrix without the horizontal thrusters' roll and pitch moments (their height's)."""
@@ -299,10 +300,14 @@ class Balance:
         """(8,) each thruster's scale on the bench thrust (the vehicle's per_thruster_scale)."""
         return self.base * np.where(self.horizontal, theta[28], 1.0)
 
+    def moment(self, theta: np.ndarray) -> float:
+        """g h: theta's, or with the height held (`hold_height`), the prior's height times theta's g."""
+        return theta[28] * self.height0 if self.hold_height else theta[27]
+
     def _thrust_side(self, theta: np.ndarray, thrust: np.ndarray) -> np.ndarray:
         """(W, 6) the wrench of bench thrusts (W, 8) times the thrust scales: k (per direction) already in."""
         return (np.einsum("wj,ij->wi", self.gain(theta) * thrust, self._matrix(theta[24:27]))
-                + theta[27] * np.einsum("wj,ij->wi", self.base * thrust, self.b_height))
+                + self.moment(theta) * np.einsum("wj,ij->wi", self.base * thrust, self.b_height))
 
     def sides(self, theta: np.ndarray, w: Windows) -> tuple[np.ndarray, np.ndarray]:
         """(model side, thrust side), each (W, 6), as mean force over each window (N, N m)."""
@@ -337,8 +342,12 @@ class Balance:
         thrust = self.gain(theta) * bench
         for s, b in enumerate(self.b_arm):
             jac[:, :, 24 + s] = -np.einsum("wj,ij->wi", thrust, b)
-        jac[:, :, 27] = -np.einsum("wj,ij->wi", self.base * bench, self.b_height)
+        height = -np.einsum("wj,ij->wi", self.base * bench, self.b_height)
         jac[:, :, 28] = -np.einsum("wj,ij->wi", self.base * self.horizontal * bench, self._matrix(theta[24:27]))
+        if self.hold_height:
+            jac[:, :, 28] += self.height0 * height
+        else:
+            jac[:, :, 27] = height
         return jac / w.duration[:, None, None]
 
     def vehicle(self, theta: np.ndarray) -> Vehicle:
@@ -347,7 +356,7 @@ class Balance:
         p = self.prior
         arms = theta[24:27]
         positions = self.positions * (1.0 + sum((s - 1.0) * m for s, m in zip(arms, self.masks)))
-        positions[self.horizontal, 2] += theta[27] / theta[28] - self.height0
+        positions[self.horizontal, 2] += self.moment(theta) / theta[28] - self.height0
         return replace(
             p, added_mass=theta[0:6].copy(), linear_damping=theta[6:12].copy(), quadratic_damping=theta[12:18].copy(),
             volume=float(theta[18] / (p.water_density * p.gravity)),

@@ -29,7 +29,10 @@ What the data cannot tell apart, and what is done about it (each such parameter 
   others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it.
 - after fitting, one at a time: a parameter whose 95 % interval is wider than its precision (10 % of its size, 1 %
   for a moment arm and 1 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
-  the rigid body), then one that crossed its lower bound (held at the bound).
+  the rigid body), after any that crossed its lower bound (held at the bound: the data say it is no larger, which
+  the prior would contradict). Where an imprecise parameter is a surge, sway or yaw added mass or damping and the horizontal thrusters' scale is still free, the scale is kept first: held at
+  a prior far from the vehicle, such a parameter would set the horizontal forces' level, and every other one with
+  it.
 """
 
 from __future__ import annotations
@@ -60,6 +63,12 @@ ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw", "arm_horizontal_z")
 # scale is positive (the instruments divide by it); the lever is free.
 MIN_THRUST_SCALE = 0.05
 HEIGHT = 27                   # theta's index of the horizontal thrusters' g h (the next is g)
+GROUP = "thrust_scale.horizontal"
+# What scales with the horizontal thrusters' force (surge, sway and yaw are driven by them alone): when one of these
+# is imprecise, the horizontal scale is kept at the prior first, as the level of all forces is (the thrusters' data
+# set it), rather than holding a prior's inertia or damping that would then set the level wrongly.
+HORIZONTAL_LEVEL = {f"{kind}.{dof}" for kind in ("added_mass", "linear_damping", "quadratic_damping")
+                    for dof in ("surge", "sway", "yaw")}
 LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3), [-np.inf],
                         [MIN_THRUST_SCALE]])
 
@@ -208,6 +217,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     model = Balance(prior)
 
     def free_mask() -> np.ndarray:
+        model.hold_height = "arm_horizontal_z" in status
         return np.array([n not in status for n in names])
 
     _structure(model, data, theta0, params, status, free_mask)
@@ -231,22 +241,27 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         half = Z95 * np.sqrt(np.maximum(np.diag(_covariance(fit, scale, windows.piece)), 0.0))
         allowed = np.array([max(params[i].precision * max(abs(fit.theta[i]), abs(theta0[i])), params[i].floor)
                             for i in index])
-        worst = int(np.argmax(half / allowed))
-        if half[worst] > allowed[worst]:
-            i = index[worst]
-            status[names[i]] = (f"prior: the data do not pin it down (fitted {fit.theta[i]:.4g} "
-                                f"+/- {half[worst]:.2g} {params[i].unit})".replace(" )", ")"))
-            continue
         below = [i for i in index if fit.theta[i] < LOWER[i]]
         if below:
             i = min(below, key=lambda j: fit.theta[j] / max(abs(theta0[j]), params[j].floor))
             theta0[i] = LOWER[i]
             status[names[i]] = f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, below {LOWER[i]:g}: held there"
             continue
+        worst = int(np.argmax(half / allowed))
+        if half[worst] > allowed[worst]:
+            i = index[worst]
+            value = f"{fit.theta[i]:.4g} +/- {half[worst]:.2g} {params[i].unit}".rstrip()
+            if names[i] in HORIZONTAL_LEVEL and free[names.index(GROUP)]:
+                status[GROUP] = (f"prior: the horizontal DOFs' level is not sharp enough ({names[i]} fitted "
+                                 f"{value}), so the horizontal thrusters' scale is kept and their forces set it")
+            else:
+                status[names[i]] = f"prior: the data do not pin it down (fitted {value})"
+            continue
         theta = fit.theta
         break
     widths, priors = dict(zip(index, half)), theta_of(prior)
-    per = np.ones((2, len(theta)))              # theta holds g h: the height is printed as h
+    theta[HEIGHT] = model.moment(theta)         # theta holds g h: the height is printed as h
+    per = np.ones((2, len(theta)))
     per[:, HEIGHT] = theta[HEIGHT + 1], priors[HEIGHT + 1]
     estimates = tuple(Estimate(p.name, p.unit, float(theta[i] / per[0, i]), float(priors[i] / per[1, i]),
                                float(widths.get(i, np.nan) / per[0, i]), status.get(p.name, "fitted"))
