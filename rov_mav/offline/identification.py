@@ -28,11 +28,9 @@ What the data cannot tell apart, and what is done about it (each such parameter 
   exercises; then, one at a time, a direction the data cannot see at all (rank) or a parameter too collinear with
   others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it.
 - after fitting, one at a time: a parameter whose 95 % interval is wider than its precision (10 % of its size, 1 %
-  for a moment arm and 1 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
+  for a moment arm and 2 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
   the rigid body), after any that crossed its lower bound (held at the bound: the data say it is no larger, which
-  the prior would contradict). Where an imprecise parameter is a surge, sway or yaw added mass or damping and the horizontal thrusters' scale is still free, the scale is kept first: held at
-  a prior far from the vehicle, such a parameter would set the horizontal forces' level, and every other one with
-  it.
+  the prior would contradict).
 """
 
 from __future__ import annotations
@@ -54,21 +52,18 @@ MIN_DURATION = 30.0           # s of flight in all runs together
 DELAY_STEPS = 5               # delays tried: 0, 1/2, ..., 2 control periods
 RELATIVE_PRECISION = 0.1      # a fitted value is kept when its 95 % CI half-width is within 10 % of its size
 ARM_PRECISION = 0.01          # ... 1 % for a moment arm, which a ruler measures about that well
+HEIGHT_PRECISION = 0.02       # ... 2 % of the thrusters' reach for the horizontal ones' height (5 mm on a BlueROV2:
+                              # 0.2 N m of roll or pitch at 40 N of thrust)
 FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's mass (inertia) in the DOF's units
 NOT_EXCITED = 1e-6            # a parameter whose forces are this small beside the largest one's is not excited
 VIF_MAX = 1.0e4               # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
+IV_COST_LIMIT = 3.0           # instrumental variables may leave this many times the least squares' (squared, per DOF)
 ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw", "arm_horizontal_z")
 # Lower bounds of theta: added mass, damping, buoyancy and arms are not negative (the vehicle file's rules), a thrust
 # scale is positive (the instruments divide by it); the lever is free.
 MIN_THRUST_SCALE = 0.05
 HEIGHT = 27                   # theta's index of the horizontal thrusters' g h (the next is g)
-GROUP = "thrust_scale.horizontal"
-# What scales with the horizontal thrusters' force (surge, sway and yaw are driven by them alone): when one of these
-# is imprecise, the horizontal scale is kept at the prior first, as the level of all forces is (the thrusters' data
-# set it), rather than holding a prior's inertia or damping that would then set the level wrongly.
-HORIZONTAL_LEVEL = {f"{kind}.{dof}" for kind in ("added_mass", "linear_damping", "quadratic_damping")
-                    for dof in ("surge", "sway", "yaw")}
 LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3), [-np.inf],
                         [MIN_THRUST_SCALE]])
 
@@ -126,7 +121,7 @@ def _parameters(prior: Vehicle) -> list[_Parameter]:
     out += [_Parameter("thrust_scale.forward", "", 0.01), _Parameter("thrust_scale.reverse", "", 0.01)]
     out += [_Parameter(name, "", 0.0, ARM_PRECISION) for name in ARM_ORDER[:3]]
     reach = float(np.abs(prior.thruster_positions).max())
-    out += [_Parameter("arm_horizontal_z", "m", ARM_PRECISION * reach, 0.0),
+    out += [_Parameter("arm_horizontal_z", "m", HEIGHT_PRECISION * reach, 0.0),
             _Parameter("thrust_scale.horizontal", "", 0.01)]
     return out
 
@@ -149,7 +144,9 @@ def _fit(model: Balance, w: Windows, theta0: np.ndarray, free: np.ndarray, scale
     First least squares, min |r|^2. Then, given `instruments` (theta -> the reference's windows flown by the model
     theta), the instrumental-variables solution Z^T r = 0 from there, Z being the model's Jacobian on those windows.
     The reference is free of the sensors' noise but the vehicle follows it, so Z correlates with the true regressors
-    and not with the noise in the measured ones. On noisy closed-loop data least squares is biased both ways: noise
+    and not with the noise in the measured ones. Where the model is far from the vehicle (a thrust law of another
+    shape), the instruments can be weak and the solution run off: one whose residuals in any DOF are more than
+    IV_COST_LIMIT times the least-squares ones is not taken, and the least-squares solution stands. On noisy closed-loop data least squares is biased both ways: noise
     in the regressors pulls added mass and damping toward zero (errors in variables), and the controller's reaction
     to that noise, which is in the thrust, pulls them toward its own gains; instrumental variables are not."""
     index = np.flatnonzero(free)
@@ -164,9 +161,12 @@ def _fit(model: Balance, w: Windows, theta0: np.ndarray, free: np.ndarray, scale
     theta = levenberg_marquardt(residual, lambda th: weighted(th, w), np.maximum(theta0, LOWER), index, LOWER)
     z = weighted(theta, w)
     if instruments is not None:
-        z = weighted(theta, instruments(theta))
-        theta = gauss_newton(lambda th: np.einsum("ij,i->j", z, residual(th)),
-                             lambda th: np.einsum("ij,ik->jk", z, weighted(th, w)), theta, index)
+        z_iv = weighted(theta, instruments(theta))
+        theta_iv = gauss_newton(lambda th: np.einsum("ij,i->j", z_iv, residual(th)),
+                                lambda th: np.einsum("ij,ik->jk", z_iv, weighted(th, w)), theta, index)
+        cost_iv, cost_ls = (np.sum(residual(th).reshape(-1, 6) ** 2, axis=0) for th in (theta_iv, theta))
+        if np.all(cost_iv <= IV_COST_LIMIT * cost_ls):
+            theta, z = theta_iv, z_iv
     return _Fit(theta, residual(theta).reshape(-1, 6) * scale, weighted(theta, w), z)
 
 
@@ -237,25 +237,24 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
             raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
                                       "(fly missions/identify.yaml)")
         fit = _fit(model, windows, np.where(free, theta, theta0), free, scale, instruments)
+        scale = np.maximum(np.sqrt(np.mean(fit.residual**2, axis=0)), 1e-9)   # each DOF by its residual, as fitted
+        fit = _fit(model, windows, fit.theta, free, scale, instruments)
         index = np.flatnonzero(free)
         half = Z95 * np.sqrt(np.maximum(np.diag(_covariance(fit, scale, windows.piece)), 0.0))
         allowed = np.array([max(params[i].precision * max(abs(fit.theta[i]), abs(theta0[i])), params[i].floor)
                             for i in index])
-        below = [i for i in index if fit.theta[i] < LOWER[i]]
+        below = [i for i in index if fit.theta[i] <= LOWER[i]]     # at the bound: least squares held it there
         if below:
             i = min(below, key=lambda j: fit.theta[j] / max(abs(theta0[j]), params[j].floor))
             theta0[i] = LOWER[i]
-            status[names[i]] = f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, below {LOWER[i]:g}: held there"
+            status[names[i]] = (f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, not above {LOWER[i]:g}: held "
+                                f"there")
             continue
         worst = int(np.argmax(half / allowed))
         if half[worst] > allowed[worst]:
             i = index[worst]
             value = f"{fit.theta[i]:.4g} +/- {half[worst]:.2g} {params[i].unit}".rstrip()
-            if names[i] in HORIZONTAL_LEVEL and free[names.index(GROUP)]:
-                status[GROUP] = (f"prior: the horizontal DOFs' level is not sharp enough ({names[i]} fitted "
-                                 f"{value}), so the horizontal thrusters' scale is kept and their forces set it")
-            else:
-                status[names[i]] = f"prior: the data do not pin it down (fitted {value})"
+            status[names[i]] = f"prior: the data do not pin it down (fitted {value})"
             continue
         theta = fit.theta
         break
