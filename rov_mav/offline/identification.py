@@ -29,8 +29,7 @@ What the data cannot tell apart, and what is done about it (each such parameter 
   others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it.
 - after fitting, one at a time: a parameter whose 95 % interval is wider than its precision (10 % of its size, 1 %
   for a moment arm and 2 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
-  the rigid body), after any that crossed its lower bound (held at the bound: the data say it is no larger, which
-  the prior would contradict).
+  the rigid body), then one that crossed its lower bound (held at the bound).
 """
 
 from __future__ import annotations
@@ -58,7 +57,6 @@ FLOOR_FRACTION = 0.02         # ... or below this fraction of the rigid body's m
 NOT_EXCITED = 1e-6            # a parameter whose forces are this small beside the largest one's is not excited
 VIF_MAX = 1.0e4               # variance inflation beyond which a parameter is too collinear with others to fit
 Z95 = 1.959964
-IV_COST_LIMIT = 3.0           # instrumental variables may leave this many times the least squares' (squared, per DOF)
 ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw", "arm_horizontal_z")
 # Lower bounds of theta: added mass, damping, buoyancy and arms are not negative (the vehicle file's rules), a thrust
 # scale is positive (the instruments divide by it); the lever is free.
@@ -144,9 +142,7 @@ def _fit(model: Balance, w: Windows, theta0: np.ndarray, free: np.ndarray, scale
     First least squares, min |r|^2. Then, given `instruments` (theta -> the reference's windows flown by the model
     theta), the instrumental-variables solution Z^T r = 0 from there, Z being the model's Jacobian on those windows.
     The reference is free of the sensors' noise but the vehicle follows it, so Z correlates with the true regressors
-    and not with the noise in the measured ones. Where the model is far from the vehicle (a thrust law of another
-    shape), the instruments can be weak and the solution run off: one whose residuals in any DOF are more than
-    IV_COST_LIMIT times the least-squares ones is not taken, and the least-squares solution stands. On noisy closed-loop data least squares is biased both ways: noise
+    and not with the noise in the measured ones. On noisy closed-loop data least squares is biased both ways: noise
     in the regressors pulls added mass and damping toward zero (errors in variables), and the controller's reaction
     to that noise, which is in the thrust, pulls them toward its own gains; instrumental variables are not."""
     index = np.flatnonzero(free)
@@ -161,12 +157,9 @@ def _fit(model: Balance, w: Windows, theta0: np.ndarray, free: np.ndarray, scale
     theta = levenberg_marquardt(residual, lambda th: weighted(th, w), np.maximum(theta0, LOWER), index, LOWER)
     z = weighted(theta, w)
     if instruments is not None:
-        z_iv = weighted(theta, instruments(theta))
-        theta_iv = gauss_newton(lambda th: np.einsum("ij,i->j", z_iv, residual(th)),
-                                lambda th: np.einsum("ij,ik->jk", z_iv, weighted(th, w)), theta, index)
-        cost_iv, cost_ls = (np.sum(residual(th).reshape(-1, 6) ** 2, axis=0) for th in (theta_iv, theta))
-        if np.all(cost_iv <= IV_COST_LIMIT * cost_ls):
-            theta, z = theta_iv, z_iv
+        z = weighted(theta, instruments(theta))
+        theta = gauss_newton(lambda th: np.einsum("ij,i->j", z, residual(th)),
+                             lambda th: np.einsum("ij,ik->jk", z, weighted(th, w)), theta, index)
     return _Fit(theta, residual(theta).reshape(-1, 6) * scale, weighted(theta, w), z)
 
 
@@ -243,18 +236,17 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         half = Z95 * np.sqrt(np.maximum(np.diag(_covariance(fit, scale, windows.piece)), 0.0))
         allowed = np.array([max(params[i].precision * max(abs(fit.theta[i]), abs(theta0[i])), params[i].floor)
                             for i in index])
-        below = [i for i in index if fit.theta[i] <= LOWER[i]]     # at the bound: least squares held it there
-        if below:
-            i = min(below, key=lambda j: fit.theta[j] / max(abs(theta0[j]), params[j].floor))
-            theta0[i] = LOWER[i]
-            status[names[i]] = (f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, not above {LOWER[i]:g}: held "
-                                f"there")
-            continue
         worst = int(np.argmax(half / allowed))
         if half[worst] > allowed[worst]:
             i = index[worst]
             value = f"{fit.theta[i]:.4g} +/- {half[worst]:.2g} {params[i].unit}".rstrip()
             status[names[i]] = f"prior: the data do not pin it down (fitted {value})"
+            continue
+        below = [i for i in index if fit.theta[i] < LOWER[i]]
+        if below:
+            i = min(below, key=lambda j: fit.theta[j] / max(abs(theta0[j]), params[j].floor))
+            theta0[i] = LOWER[i]
+            status[names[i]] = f"bound: fitted {fit.theta[i]:.3g} {params[i].unit}, below {LOWER[i]:g}: held there"
             continue
         theta = fit.theta
         break
