@@ -26,7 +26,8 @@ What the data cannot tell apart, and what is done about it (each such parameter 
   and the couplings to heave, roll and pitch.
 - before fitting, on the noise-free design (the reference, the prior's thrust): parameters the reference never
   exercises; then, one at a time, a direction the data cannot see at all (rank) or a parameter too collinear with
-  others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it.
+  others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it. The horizontal thrusters'
+  scale, when surge and sway never act on heave, roll or pitch (the only link to the vertical thrusters' level).
 - after fitting, one at a time: a parameter whose 95 % interval is wider than its precision (10 % of its size, 1 %
   for a moment arm and 2 % of the thrusters' reach for the horizontal ones' height, or an absolute floor scaled by
   the rigid body), then one that crossed its lower bound (held at the bound).
@@ -62,6 +63,8 @@ ARM_ORDER = ("arm_roll", "arm_pitch", "arm_yaw", "arm_horizontal_z")
 # scale is positive (the instruments divide by it); the lever is free.
 MIN_THRUST_SCALE = 0.05
 HEIGHT = 27                   # theta's index of the horizontal thrusters' g h (the next is g)
+GROUP = "thrust_scale.horizontal"
+COUPLING_MIN = 0.01           # the surge or sway added mass's share in heave, roll and pitch that lets GROUP be fitted
 LOWER = np.concatenate([np.zeros(19), np.full(3, -np.inf), np.full(2, MIN_THRUST_SCALE), np.zeros(3), [-np.inf],
                         [MIN_THRUST_SCALE]])
 
@@ -296,6 +299,18 @@ def _delay(model: Balance, data: Flights, theta0: np.ndarray, free: np.ndarray, 
     return float(delays[k] + (delays[k + 1] - delays[k]) * moments[k] / (moments[k] - moments[k + 1]))
 
 
+def _coupled(design: np.ndarray, names: list[str]) -> bool:
+    """Whether the surge or sway added mass acts in the heave, roll or pitch balance (the vertical thrusters' DOFs)
+    at least COUPLING_MIN of what it does in its own: what tells the horizontal thrusters' scale from the forces they
+    drive. design: (W, 6, parameters), each DOF scaled by its force."""
+    for dof, name in ((0, "added_mass.surge"), (1, "added_mass.sway")):
+        column = design[:, :, names.index(name)]
+        own = np.linalg.norm(column[:, dof])
+        if own > 0 and np.linalg.norm(column[:, 2:5]) >= COUPLING_MIN * own:
+            return True
+    return False
+
+
 def _structure(model: Balance, data: Flights, theta0: np.ndarray, params: list[_Parameter], status: dict[str, str],
                free_mask) -> None:
     """Keep at the prior what the excitation cannot show whatever the noise, judged on the flight the prior model
@@ -311,6 +326,10 @@ def _structure(model: Balance, data: Flights, theta0: np.ndarray, params: list[_
     effect = np.linalg.norm(design.reshape(-1, len(names)), axis=0) * size      # each parameter's share of the forces
     for i in np.flatnonzero(free_mask() & (effect < NOT_EXCITED * effect.max())):
         status[names[i]] = "prior: not excited in these logs"
+    if GROUP not in status and not _coupled(design, names):
+        status[GROUP] = ("prior: nothing in these logs couples surge or sway to heave, roll or pitch (pitching while "
+                         "surging, rolling while swaying), so the horizontal thrusters' force cannot be told from the "
+                         "added mass and damping it drives")
     while (free := free_mask()).any():
         index = np.flatnonzero(free)
         blind, vif, correlation = collinearity(design[:, :, index].reshape(-1, index.size))
