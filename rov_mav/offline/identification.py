@@ -21,9 +21,9 @@ What the data cannot tell apart, and what is done about it (each such parameter 
   diagonal (r_g = 0): motion shows forces only relative to the thrust. One number must come from elsewhere: the
   forward thrust scale stays the prior's (the thrusters' bench data), or a measured net buoyancy (the vehicle's
   weight in water) fixes B and frees the thrust scale. The horizontal group's scale is relative to the others' (the
-  vertical thrusters'): the heave balance sees those, the horizontal ones are told apart from the added mass and
-  damping they drive by the known rigid body (its mass in the Coriolis forces of turning while moving, its inertia)
-  and the couplings to heave, roll and pitch.
+  vertical thrusters'): surge, sway and yaw are driven by the horizontal thrusters alone, so only the couplings of
+  surge and sway to heave, roll and pitch (the Coriolis and Munk terms of pitching while surging, rolling while
+  swaying) tell it from the added mass and damping they drive.
 - before fitting, on the noise-free design (the reference, the prior's thrust): parameters the reference never
   exercises; then, one at a time, a direction the data cannot see at all (rank) or a parameter too collinear with
   others (variance inflation above VIF_MAX); a moment arm goes first, a ruler measures it. The horizontal thrusters'
@@ -213,7 +213,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     model = Balance(prior)
 
     def free_mask() -> np.ndarray:
-        model.hold_height = "arm_horizontal_z" in status
+        model.hold_height = "arm_horizontal_z" in status      # a held height follows the fitted scale
         return np.array([n not in status for n in names])
 
     _structure(model, data, theta0, params, status, free_mask)
