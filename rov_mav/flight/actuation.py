@@ -1,8 +1,8 @@
 """The runner's actuation: wrench -> 8 thrusts -> 8 PWMs, at the battery voltage, within the thrust cap.
 
 One allocator and one thruster map for the project (`rov_mav.model.thrusters`: the vehicle file's T200 data or
-quadratic law, scaled by its `thrust_scale`); this only keeps their limits current: each thruster's range is its map's
-at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
+quadratic law, scaled by its `thrust_scale` and `per_thruster_scale`); this only keeps their limits current: each
+thruster's range is its map's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
 thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it,
 and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
