@@ -386,13 +386,14 @@ def test_over_the_bridge(tmp_path, capsys):
 
     Only the surge and heave part of identify.yaml (61 s, at --speedup BRIDGE_SPEEDUP: a loaded machine holds it),
     so that the test also shows what identify does with what was not excited: sway, roll, pitch and yaw stay at
-    the prior, saying so. What was excited comes back within BRIDGE_TOLERANCE. The link adds what the in-process
-    loop has not: a command acts milliseconds of vehicle time after the state it answers, varying with the load
-    (the runner's telemetry age and the fitted delay absorb it; stale stretches are skipped), and the thrust is
-    mapped at the voltage the runner last heard (SYS_STATUS, 2 Hz) while the bridge's battery sags under the heave
-    multisine's current faster than that (1.3 V: thrust over-estimated at high demand, so heave damping comes out
-    low). Measured over nine runs on a loaded 2-core machine: thrust scales within 1 %, surge parameters within
-    7 %, heave added mass within 2.6 %, heave quadratic damping from -16 % to +6 %."""
+    the prior, saying so, and so does the horizontal thrusters' scale against the vertical ones (nothing couples
+    surge to heave, roll or pitch here). What was excited comes back within BRIDGE_TOLERANCE. The link adds what the
+    in-process loop has not: a command acts milliseconds of vehicle time after the state it answers, varying with
+    the load (the runner's telemetry age and the fitted delay absorb it; stale stretches are skipped), and the
+    thrust is mapped at the voltage the runner last heard (SYS_STATUS, 2 Hz) while the bridge's battery sags
+    under the heave multisine's current faster than that (1.3 V: thrust over-estimated at high demand, so heave
+    damping comes out low). Measured over nine runs on a loaded 2-core machine: thrust scales within 1 %, surge
+    parameters within 7 %, heave added mass within 2.6 %, heave quadratic damping from -16 % to +6 %."""
     plant_file, mission = tmp_path / "plant.yaml", tmp_path / "short.yaml"
     save_vehicle(PLANT, plant_file)
     mission.write_text(SHORT_EXCITATION)
@@ -414,6 +415,9 @@ def test_over_the_bridge(tmp_path, capsys):
     for name in ("added_mass.sway", "added_mass.roll", "added_mass.pitch", "added_mass.yaw", "quadratic_damping.yaw",
                  "lever.z"):
         assert name in kept.split(", ") and "not excited" in table[name][1], name
+    # surge alone scales with the horizontal thrusters' force: without a coupling to heave, roll or pitch their
+    # scale is kept (and the surge added mass, not the scale, takes the surge balance)
+    assert "thrust_scale.horizontal" in kept.split(", ") and "couples" in table["thrust_scale.horizontal"][1]
     r2 = {m[0]: float(m[1]) for m in re.findall(r"^  (\w+)\s+R\^2 ([\d.]+)", stdout, re.MULTILINE)}
     assert r2["surge"] >= MIN_R2 and r2["heave"] >= MIN_R2, r2
     vehicle = load_vehicle(out)

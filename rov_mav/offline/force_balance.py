@@ -276,7 +276,8 @@ class Balance:
         vertical = np.abs(e[:, 2]) > 0.9
         self.horizontal = horizontal(prior)
         self.positions, self.masks = r, []
-        for mask in (vertical[:, None] * [0, 1, 0], vertical[:, None] * [1, 0, 0], self.horizontal[:, None] * [1, 1, 0]):
+        for mask in (vertical[:, None] * [0, 1, 0], vertical[:, None] * [1, 0, 0],
+                     self.horizontal[:, None] * [1, 1, 0]):
             self.masks.append(mask.astype(float))
         self.b0 = allocation_matrix(r, e)
         self.b_arm = []
