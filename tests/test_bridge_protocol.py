@@ -72,8 +72,8 @@ def test_mode_changes_and_refusals(gcs):
     gcs.send("set_mode", 1, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 16)
     assert gcs.recv("COMMAND_ACK", cond=lambda m: m.command == 11).result == mav.MAV_RESULT_ACCEPTED
     assert gcs.recv("HEARTBEAT", cond=lambda m: m.custom_mode == 16).base_mode == 89
-    for unknown in (4, 42):
-        ack = gcs.command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, unknown)
+    for refused in (3, 42):                        # AUTO, which this vehicle does not fly, and no mode at all
+        ack = gcs.command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, refused)
         assert ack.result == mav.MAV_RESULT_FAILED
     assert gcs.command(mav.MAV_CMD_DO_SET_MODE, 0, 19).result == mav.MAV_RESULT_DENIED
     assert gcs.recv("HEARTBEAT").custom_mode == 16
