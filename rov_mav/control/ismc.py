@@ -26,6 +26,7 @@ import math
 from rov_mav.model.kernel import (
     body_from_earth,
     compiled,
+    inlined,
     coriolis_times_nu,
     damping_times_nu,
     mass_row,
@@ -43,7 +44,7 @@ BOUNDS = {"k_pos": (0.1, 5.0),
 STATE_SIZE = 13
 
 
-@compiled
+@inlined
 def step(m, params, eta, nu, ref, dt, state, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each; updates state."""
     k_pos, kp, k, phi = params[0:6], params[6:12], params[12:18], params[18:24]
