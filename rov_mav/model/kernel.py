@@ -204,7 +204,10 @@ def rk4_step(m, env, x, tau, t, h, ws):
 
 @compiled
 def wrap_angle(a):
-    """Wrap an angle to [-pi, pi)."""
+    """Wrap an angle to [-pi, pi): an angle already inside is returned as it is (the floating-point remainder, a
+    library call, only for the rest)."""
+    if -math.pi <= a < math.pi:
+        return a
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 

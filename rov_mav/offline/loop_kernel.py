@@ -104,11 +104,13 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
     gamma = ws[122:128]
     noise = env[E_NOISE:E_NOISE + 4]
     total = 0.0
+    slot = 0          # k % (late + 1): this tick's place in the ring
     for k in range(n_steps + 1):
-        _measure(x, noise, measured[k % (late + 1)])
+        _measure(x, noise, measured[slot])
+        slot = slot + 1 if slot < late else 0   # the oldest measurement, k - late, is in the next place
         sampled = k - late
-        if k == 0 or (sampled >= 0 and sampled % every == 0):
-            held = measured[max(sampled, 0) % (late + 1)]
+        if k == 0 or (sampled >= 0 and (every == 1 or sampled % every == 0)):
+            held = measured[slot if sampled >= 0 else 0]
             for i in range(6):
                 eta_m[i] = held[i]
                 nu_m[i] = held[6 + i]
