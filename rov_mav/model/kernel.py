@@ -46,9 +46,9 @@ FAST = {"contract", "reassoc", "arcp", "nsz", "afn"}
 # compiled without Numba's reference counting (`_nrt=False`): kernel functions never allocate, and each array view
 # or array argument would otherwise cost two calls that update a counter atomically, most of a law's time.
 compiled = njit(cache=True, fastmath=FAST, error_model="numpy", _nrt=False)
-# The same, inlined into its caller at Numba's IR level: for the glue between the laws and the loop, whose calls pass
-# many arrays (seven arguments each). The arithmetic leaves stay `compiled` (LLVM inlines the small ones): inlining
-# them at Numba's level too would triple the cold compile for no measured gain.
+# The same, inlined into its caller at Numba's IR level: for the glue between the laws and the loop and for the RK4
+# stages, whose calls pass many arrays (seven arguments each). The arithmetic leaves stay `compiled` (LLVM inlines the
+# small ones): inlining them at Numba's level too would triple the cold compile for no measured gain.
 inlined = njit(cache=True, fastmath=FAST, error_model="numpy", inline="always", _nrt=False)
 # A function that allocates (reference counting on).
 allocating = njit(cache=True, fastmath=FAST, error_model="numpy")
@@ -140,7 +140,7 @@ def state_derivative(m, x, tau, current_ned, dx):
     derivative_at(m, x, attitude_trig(x), tau, current_ned, dx)
 
 
-@compiled
+@inlined
 def attitude_trig(x):
     """(cos phi, sin phi, cos theta, sin theta, cos psi, sin psi) of the state x."""
     return math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4]), math.cos(x[5]), math.sin(x[5])
@@ -150,7 +150,7 @@ def attitude_trig(x):
 SMALL_TURN = 0.05
 
 
-@compiled
+@inlined
 def turned(c, s, angle, d):
     """(cos, sin) of angle = a + d from c = cos a, s = sin a by the angle-addition formulas, cos d and sin d from
     their Taylor series when |d| <= SMALL_TURN (a library call otherwise): what an RK4 stage needs a few ns for."""
@@ -162,7 +162,7 @@ def turned(c, s, angle, d):
     return c * cd - s * sd, s * cd + c * sd
 
 
-@compiled
+@inlined
 def stage_trig(trig, xs, step, k):
     """attitude_trig(xs) for the RK4 stage xs = x + step k, from trig = attitude_trig(x)."""
     cphi, sphi = turned(trig[0], trig[1], xs[3], step * k[3])
@@ -171,7 +171,7 @@ def stage_trig(trig, xs, step, k):
     return cphi, sphi, cth, sth, cpsi, spsi
 
 
-@compiled
+@inlined
 def derivative_at(m, x, trig, tau, current_ned, dx):
     """state_derivative with the attitude's trig = attitude_trig(x) given."""
     cphi, sphi, cth, sth, cpsi, spsi = trig
