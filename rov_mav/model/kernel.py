@@ -208,12 +208,30 @@ def disturbance(env, t, tau, out):
         out[i] = tau[i] + env[E_DIST + i] + env[E_AMP + i] * phase
 
 
+# Steps an attitude's sines and cosines are carried from step to step before they are computed afresh: bounds the
+# rounding they gather (about one unit in the last place a step).
+TRIG_REFRESH = 64
+
+
+@inlined
+def carried_trig(x, ws):
+    """attitude_trig(x), carried over in ws[66:76] = [attitude (3), its trig (6), steps left] when x's attitude is
+    the one rk4_step left there, else computed afresh (and the attitude noted)."""
+    if ws[75] > 0.0 and x[3] == ws[66] and x[4] == ws[67] and x[5] == ws[68]:
+        ws[75] -= 1.0
+        return ws[69], ws[70], ws[71], ws[72], ws[73], ws[74]
+    ws[66], ws[67], ws[68], ws[75] = x[3], x[4], x[5], TRIG_REFRESH
+    return attitude_trig(x)
+
+
 @compiled
 def rk4_step(m, env, x, tau, t, h, ws):
     """Advance the plant state x (12,) in place by h seconds with the control wrench tau held (classic RK4).
 
-    The disturbance tau_d(t) is evaluated at t, t + h/2 and t + h. The attitude's sines and cosines are computed
-    once, at x; each later stage turns them by its small angle increment (`stage_trig`). ws: workspace (80,)."""
+    The disturbance tau_d(t) is evaluated at t, t + h/2 and t + h. The attitude's sines and cosines are turned by
+    each stage's small angle increment (`stage_trig`) and on to the next step's attitude (`carried_trig`), computed
+    afresh every TRIG_REFRESH steps or when x's attitude is not the one this left. ws: workspace (80,), zeroed before
+    a first step."""
     k1 = ws[0:12]
     k2 = ws[12:24]
     k3 = ws[24:36]
@@ -221,7 +239,7 @@ def rk4_step(m, env, x, tau, t, h, ws):
     xs = ws[48:60]
     total = ws[60:66]
     current = env[E_CURRENT:E_CURRENT + 3]
-    trig = attitude_trig(x)
+    trig = carried_trig(x, ws)
     disturbance(env, t, tau, total)
     derivative_at(m, x, trig, total, current, k1)
     disturbance(env, t + 0.5 * h, tau, total)
@@ -237,6 +255,10 @@ def rk4_step(m, env, x, tau, t, h, ws):
     derivative_at(m, xs, stage_trig(trig, xs, h, k3), total, current, k4)
     for i in range(12):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    for i in range(3):
+        xs[3 + i] = x[3 + i] - ws[66 + i]   # the attitude's increment (exact: the two are close)
+        ws[66 + i] = x[3 + i]
+    ws[69], ws[70], ws[71], ws[72], ws[73], ws[74] = stage_trig(trig, x, 1.0, xs)
 
 
 @compiled

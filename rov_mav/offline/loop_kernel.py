@@ -15,9 +15,8 @@ from rov_mav.model.kernel import (
     E_SAMPLE_DELAY,
     E_SAMPLE_PERIOD,
     FAST,
-    compiled,
-    inlined,
     compiled_loop,
+    inlined,
     rk4_step,
     wrap_angle,
 )
