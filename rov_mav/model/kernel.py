@@ -256,7 +256,7 @@ def rk4_step(m, env, x, tau, t, h, ws):
     for i in range(12):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     for i in range(3):
-        xs[3 + i] = x[3 + i] - ws[66 + i]   # the attitude's increment (exact: the two are close)
+        xs[3 + i] = x[3 + i] - ws[66 + i]   # the attitude's increment (exact for close values, Sterbenz)
         ws[66 + i] = x[3 + i]
     ws[69], ws[70], ws[71], ws[72], ws[73], ws[74] = stage_trig(trig, x, 1.0, xs)
 
