@@ -83,6 +83,29 @@ def test_batch_runs_equal_single_runs(vehicle, line):
     assert len(set(together)) == 3
 
 
+def test_simulated_sensor_noise_has_the_configured_spread_and_is_white():
+    """The offline loop's sensor noise (loop_kernel._measure): zero mean, each component's std as configured,
+    components and successive draws uncorrelated, the same stream for the same seed."""
+    sigma = np.array([0.02, 0.009, 0.01, 0.005])
+    expected = np.concatenate([np.repeat(sigma[:2], 3), np.repeat(sigma[2:], 3)])
+    x = np.linspace(-1.0, 1.0, 12)
+
+    def draws(seed, n=20000):
+        out, rng = np.zeros((n, 12)), np.uint64(seed)
+        for k in range(n):
+            rng = np.uint64(loop_kernel._measure(x, sigma, out[k], rng) % 2**64)   # Numba returns a Python int
+        return out - x
+
+    noise = draws(7)
+    assert np.all(np.abs(noise.mean(axis=0)) < 4 * expected / np.sqrt(len(noise)))
+    np.testing.assert_allclose(noise.std(axis=0), expected, rtol=0.03)
+    unit = noise / expected
+    correlation = np.corrcoef(np.hstack([unit[1:], unit[:-1]]).T)
+    assert np.max(np.abs(correlation - np.eye(24))) < 0.03
+    np.testing.assert_array_equal(draws(7, 50), noise[:50])
+    assert not np.array_equal(draws(8, 50), noise[:50])
+
+
 def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
     settings = load_settings("fuzzy").with_gains(np.full(12, 400.0))
     trace = simulate(line, settings, vehicle, dt=0.05)

@@ -12,6 +12,7 @@ from rov_mav.model.kernel import (
     P_MINV,
     body_from_earth,
     compiled,
+    inlined,
     coriolis_times_nu,
     damping_times_nu,
     mass_row,
@@ -31,7 +32,7 @@ SCHEDULE_CONSTANT = 1   # constant Gamma
 SCHEDULE_FUZZY = 2      # Mamdani FIS, tabulated (rov_mav.control.fuzzy)
 
 
-@compiled
+@inlined
 def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
     """The corrected backstepping law (ERRATA 2, Eq. 2.17) and the adaptation direction (ERRATA 3, Eq. 2.22).
 
@@ -66,7 +67,7 @@ def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
                    + m[b + 30] * j5)
 
 
-@compiled
+@inlined
 def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
     """Gamma per body DOF: constant, or the tabulated Mamdani FIS of |grad_i| (Eq. 2.29); writes gamma (6,)."""
     n = table.shape[1]
@@ -82,7 +83,7 @@ def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
             gamma[i] = 0.0
 
 
-@compiled
+@inlined
 def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
     """One explicit step of d(tau_hat)/dt = Gamma (J M^-1)^T s (ERRATA 3), projected onto |tau_hat_i| <= d_max_i
     (Assumption 2). Baseline (no schedule) keeps tau_hat = 0."""
@@ -94,7 +95,7 @@ def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
             tau_hat[i] = min(max(value, -d_max[i]), d_max[i])
 
 
-@compiled
+@inlined
 def step(schedule, m, params, table, table_xmax, eta, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
     """One tick: tau from the law with the current estimate (state[0:6]), then the estimate advanced by dt.
 

@@ -9,7 +9,7 @@ own module with its sources: `backstepping` (baseline, constant, fuzzy: the repo
 from __future__ import annotations
 
 from rov_mav.control import backstepping, ismc, pid, smc
-from rov_mav.model.kernel import compiled
+from rov_mav.model.kernel import inlined
 
 KIND_BASELINE = backstepping.SCHEDULE_NONE
 KIND_CONSTANT = backstepping.SCHEDULE_CONSTANT
@@ -22,7 +22,7 @@ KIND_ISMC = 5
 STATE_SIZE = max(backstepping.STATE_SIZE, pid.STATE_SIZE, smc.STATE_SIZE, ismc.STATE_SIZE)
 
 
-@compiled
+@inlined
 def controller_step(kind, m, params, table, table_xmax, eta, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
     """One control tick of controller `kind` for the measured eta, nu (6,) against ref (18,) = [eta_d, eta_dot_d,
     eta_ddot_d], with the controller's model m (packed vehicle), parameters `params` and, for the fuzzy schedule,

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-from rov_mav.model.kernel import compiled, rotation, wrap_angle
+from rov_mav.model.kernel import inlined, rotation, wrap_angle
 
 PARAMETERS = (("kp_pos", 6), ("kp_vel", 6), ("ki_vel", 6), ("kd_vel", 6), ("i_max", 6), ("d_filter_hz", 1))
 TUNED = ("kp_pos", "kp_vel", "ki_vel", "kd_vel")
@@ -37,7 +37,7 @@ BOUNDS = {"kp_pos": (0.1, 5.0),
 STATE_SIZE = 19
 
 
-@compiled
+@inlined
 def step(params, eta, nu, ref, dt, state, tau, tau_hat, s):
     """One tick of the cascade: writes tau, tau_hat (6,), s = 0 (no sliding variable); updates state."""
     kp_pos, kp, ki, kd, i_max = params[0:6], params[6:12], params[12:18], params[18:24], params[24:30]

@@ -24,6 +24,7 @@ from rov_mav.model.kernel import (
     P_M,
     body_from_earth,
     compiled,
+    inlined,
     damping_times_nu,
     restoring,
     state_kinematics,
@@ -38,12 +39,12 @@ BOUNDS = {"lam": (0.1, 5.0),
 STATE_SIZE = 0
 
 
-@compiled
+@inlined
 def saturation(x):
     return min(max(x, -1.0), 1.0)
 
 
-@compiled
+@inlined
 def step(m, params, eta, nu, ref, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each."""
     lam, k, phi = params[0:6], params[6:12], params[12:18]

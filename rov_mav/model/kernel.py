@@ -42,8 +42,18 @@ E_SIZE = 22
 # meaning (the divergence check relies on them).
 FAST = {"contract", "reassoc", "arcp", "nsz", "afn"}
 
-# Every kernel function: cached to disk, numpy's error model (no Python-style division checks in the hot loop).
-compiled = njit(cache=True, fastmath=FAST, error_model="numpy")
+# Every kernel function: cached to disk, numpy's error model (no Python-style division checks in the hot loop), and
+# compiled without Numba's reference counting (`_nrt=False`): kernel functions never allocate, and each array view
+# or array argument would otherwise cost two calls that update a counter atomically, most of a law's time.
+compiled = njit(cache=True, fastmath=FAST, error_model="numpy", _nrt=False)
+# The same, inlined into its caller at Numba's IR level: for the glue between the laws and the loop and for the RK4
+# stages, whose calls pass many arrays (seven arguments each). The arithmetic leaves stay `compiled` (LLVM inlines the
+# small ones): inlining them at Numba's level too would triple the cold compile for no measured gain.
+inlined = njit(cache=True, fastmath=FAST, error_model="numpy", inline="always", _nrt=False)
+# A function that allocates (reference counting on).
+allocating = njit(cache=True, fastmath=FAST, error_model="numpy")
+# A whole closed loop over kernel functions: called (not inlined) once per run, releasing the GIL.
+compiled_loop = njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True, _nrt=False)
 
 
 @compiled
@@ -127,9 +137,44 @@ def state_derivative(m, x, tau, current_ned, dx):
 
     `tau` is the total body wrench (control + disturbance). A water current enters through the relative velocity
     nu_r = nu - [R^T v_c; 0] in the damping. x, dx: (12,)."""
-    cphi, sphi = math.cos(x[3]), math.sin(x[3])
-    cth, sth = math.cos(x[4]), math.sin(x[4])
-    cpsi, spsi = math.cos(x[5]), math.sin(x[5])
+    derivative_at(m, x, attitude_trig(x), tau, current_ned, dx)
+
+
+@inlined
+def attitude_trig(x):
+    """(cos phi, sin phi, cos theta, sin theta, cos psi, sin psi) of the state x."""
+    return math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4]), math.cos(x[5]), math.sin(x[5])
+
+
+# rad: a turn up to this is rotated by series (cos d to d^8 and sin d to d^9: truncated below 1e-19).
+SMALL_TURN = 0.05
+
+
+@inlined
+def turned(c, s, angle, d):
+    """(cos, sin) of angle = a + d from c = cos a, s = sin a by the angle-addition formulas, cos d and sin d from
+    their Taylor series when |d| <= SMALL_TURN (a library call otherwise): what an RK4 stage needs a few ns for."""
+    if abs(d) > SMALL_TURN:
+        return math.cos(angle), math.sin(angle)
+    d2 = d * d
+    cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0)))
+    sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0))))
+    return c * cd - s * sd, s * cd + c * sd
+
+
+@inlined
+def stage_trig(trig, xs, step, k):
+    """attitude_trig(xs) for the RK4 stage xs = x + step k, from trig = attitude_trig(x)."""
+    cphi, sphi = turned(trig[0], trig[1], xs[3], step * k[3])
+    cth, sth = turned(trig[2], trig[3], xs[4], step * k[4])
+    cpsi, spsi = turned(trig[4], trig[5], xs[5], step * k[5])
+    return cphi, sphi, cth, sth, cpsi, spsi
+
+
+@inlined
+def derivative_at(m, x, trig, tau, current_ned, dx):
+    """state_derivative with the attitude's trig = attitude_trig(x) given."""
+    cphi, sphi, cth, sth, cpsi, spsi = trig
     u, v, w, p, q, r = x[6], x[7], x[8], x[9], x[10], x[11]
     R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
     dx[0] = R[0] * u + R[1] * v + R[2] * w
@@ -163,11 +208,30 @@ def disturbance(env, t, tau, out):
         out[i] = tau[i] + env[E_DIST + i] + env[E_AMP + i] * phase
 
 
+# Steps an attitude's sines and cosines are carried from step to step before they are computed afresh: bounds the
+# rounding they gather (about one unit in the last place a step).
+TRIG_REFRESH = 64
+
+
+@inlined
+def carried_trig(x, ws):
+    """attitude_trig(x), carried over in ws[66:76] = [attitude (3), its trig (6), steps left] when x's attitude is
+    the one rk4_step left there, else computed afresh (and the attitude noted)."""
+    if ws[75] > 0.0 and x[3] == ws[66] and x[4] == ws[67] and x[5] == ws[68]:
+        ws[75] -= 1.0
+        return ws[69], ws[70], ws[71], ws[72], ws[73], ws[74]
+    ws[66], ws[67], ws[68], ws[75] = x[3], x[4], x[5], TRIG_REFRESH
+    return attitude_trig(x)
+
+
 @compiled
 def rk4_step(m, env, x, tau, t, h, ws):
     """Advance the plant state x (12,) in place by h seconds with the control wrench tau held (classic RK4).
 
-    The disturbance tau_d(t) is evaluated at t, t + h/2 and t + h. ws: workspace (80,)."""
+    The disturbance tau_d(t) is evaluated at t, t + h/2 and t + h. The attitude's sines and cosines are turned by
+    each stage's small angle increment (`stage_trig`) and on to the next step's attitude (`carried_trig`), computed
+    afresh every TRIG_REFRESH steps or when x's attitude is not the one this left. ws: workspace (80,), zeroed before
+    a first step."""
     k1 = ws[0:12]
     k2 = ws[12:24]
     k3 = ws[24:36]
@@ -175,30 +239,38 @@ def rk4_step(m, env, x, tau, t, h, ws):
     xs = ws[48:60]
     total = ws[60:66]
     current = env[E_CURRENT:E_CURRENT + 3]
+    trig = carried_trig(x, ws)
     disturbance(env, t, tau, total)
-    state_derivative(m, x, total, current, k1)
+    derivative_at(m, x, trig, total, current, k1)
     disturbance(env, t + 0.5 * h, tau, total)
     for i in range(12):
         xs[i] = x[i] + 0.5 * h * k1[i]
-    state_derivative(m, xs, total, current, k2)
+    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k1), total, current, k2)
     for i in range(12):
         xs[i] = x[i] + 0.5 * h * k2[i]
-    state_derivative(m, xs, total, current, k3)
+    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k2), total, current, k3)
     disturbance(env, t + h, tau, total)
     for i in range(12):
         xs[i] = x[i] + h * k3[i]
-    state_derivative(m, xs, total, current, k4)
+    derivative_at(m, xs, stage_trig(trig, xs, h, k3), total, current, k4)
     for i in range(12):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    for i in range(3):
+        xs[3 + i] = x[3 + i] - ws[66 + i]   # the attitude's increment (exact for close values, Sterbenz)
+        ws[66 + i] = x[3 + i]
+    ws[69], ws[70], ws[71], ws[72], ws[73], ws[74] = stage_trig(trig, x, 1.0, xs)
 
 
 @compiled
 def wrap_angle(a):
-    """Wrap an angle to [-pi, pi)."""
+    """Wrap an angle to [-pi, pi): an angle already inside is returned as it is (the floating-point remainder, a
+    library call, only for the rest)."""
+    if -math.pi <= a < math.pi:
+        return a
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@compiled
+@inlined
 def body_from_earth(cphi, sphi, cth, sth, R, a):
     """J(eta)^-1 a for a (6,) in the eta frame: R^T on the translation, T^-1 on the rotation (Eq. 2.4), 6-tuple."""
     return (R[0] * a[0] + R[3] * a[1] + R[6] * a[2],
@@ -209,7 +281,7 @@ def body_from_earth(cphi, sphi, cth, sth, R, a):
             -sphi * a[4] + cth * cphi * a[5])
 
 
-@compiled
+@inlined
 def state_kinematics(eta, nu):
     """What every law starts from: (cphi, sphi, cth, sth, R, eta_dot, A) with R the body-to-NED rotation (9-tuple,
     row-major), eta_dot = J(eta) nu (Eq. 2.4) and A = J_dot(eta) nu, both 6-tuples."""
@@ -224,7 +296,7 @@ def state_kinematics(eta, nu):
     return cphi, sphi, cth, sth, R, eta_dot, A
 
 
-@compiled
+@inlined
 def tracking_error(eta, eta_dot, ref, i):
     """(e_i, e_dot_i): the error of DOF i against ref = [eta_d, eta_dot_d, eta_ddot_d], angles wrapped (Eq. 2.13)."""
     e = eta[i] - ref[i]

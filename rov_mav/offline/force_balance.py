@@ -45,7 +45,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from rov_mav.model.dynamics import coriolis, jacobian, rotation
-from rov_mav.model.kernel import compiled
+from rov_mav.model.kernel import allocating
 from rov_mav.model.thrusters import NEUTRAL_PWM, ThrusterMap, allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline.tuning import feedforward
@@ -129,7 +129,7 @@ def lagged_integral(t: np.ndarray, sent: np.ndarray, u: np.ndarray, delay: float
     return np.where(before, 0.0, integral - lag * value)
 
 
-@compiled
+@allocating
 def lag_response(u, decay):
     """f (N+1, n) at the hold breakpoints of a first-order lag from rest: f_(k+1) = u_k + (f_k - u_k) decay_k."""
     f = np.zeros((u.shape[0] + 1, u.shape[1]))

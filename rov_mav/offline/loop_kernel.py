@@ -10,7 +10,16 @@ import numpy as np
 from numba import njit
 
 from rov_mav.control.law_kernel import STATE_SIZE, controller_step
-from rov_mav.model.kernel import E_NOISE, E_SAMPLE_DELAY, E_SAMPLE_PERIOD, FAST, compiled, rk4_step, wrap_angle
+from rov_mav.model.kernel import (
+    E_NOISE,
+    E_SAMPLE_DELAY,
+    E_SAMPLE_PERIOD,
+    FAST,
+    compiled_loop,
+    inlined,
+    rk4_step,
+    wrap_angle,
+)
 
 # Limits beyond which a simulated vehicle counts as diverged (Assumption 1 and sanity bounds).
 MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular at pi/2)
@@ -25,7 +34,7 @@ def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
             np.full(6, np.inf))
 
 
-@compiled
+@inlined
 def _diverged(x):
     for i in range(12):
         if not math.isfinite(x[i]):
@@ -38,7 +47,7 @@ def _diverged(x):
     return False
 
 
-@compiled
+@inlined
 def _saturated(tau, tau_max):
     """True when a commanded |tau_i| exceeds tau_max_i: the thrusters cannot deliver it."""
     for i in range(6):
@@ -47,17 +56,56 @@ def _saturated(tau, tau_max):
     return False
 
 
-@compiled
-def _measure(x, noise, out):
-    """The state as the sensors give it: out (12,) = x plus white noise (position, attitude, velocity, rate std)."""
+# Sensor noise: splitmix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014)
+# seeded per run, normal pairs by Marsaglia's polar method; a fourth of the cost of np.random.normal in Numba
+# (its thread-local Mersenne Twister), which made a noisy run cost twice a clean one.
+_GOLDEN_GAMMA = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_TO_UNIT = 2.0 ** -53
+
+
+@inlined
+def _uniform(rng):
+    """(next state, a uniform double in [0, 1)) from the splitmix64 state rng (uint64)."""
+    rng = rng + _GOLDEN_GAMMA
+    z = (rng ^ (rng >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    z = z ^ (z >> np.uint64(31))
+    return rng, (z >> np.uint64(11)) * _TO_UNIT
+
+
+@inlined
+def _normal_pair(rng):
+    """(next state, two independent standard normals): Marsaglia's polar method."""
+    while True:
+        rng, u1 = _uniform(rng)
+        rng, u2 = _uniform(rng)
+        a = 2.0 * u1 - 1.0
+        b = 2.0 * u2 - 1.0
+        r2 = a * a + b * b
+        if 0.0 < r2 < 1.0:
+            f = math.sqrt(-2.0 * math.log(r2) / r2)
+            return rng, f * a, f * b
+
+
+@inlined
+def _measure(x, noise, out, rng):
+    """The state as the sensors give it: out (12,) = x plus white noise (position, attitude, velocity, rate std);
+    returns the noise generator's next state."""
     for i in range(6):
-        sigma = noise[0] if i < 3 else noise[1]
-        out[i] = x[i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
-        sigma = noise[2] if i < 3 else noise[3]
-        out[6 + i] = x[6 + i] + (np.random.normal() * sigma if sigma > 0.0 else 0.0)
+        pose_sigma = noise[0] if i < 3 else noise[1]
+        rate_sigma = noise[2] if i < 3 else noise[3]
+        out[i] = x[i]
+        out[6 + i] = x[6 + i]
+        if pose_sigma > 0.0 or rate_sigma > 0.0:
+            rng, n1, n2 = _normal_pair(rng)
+            out[i] += n1 * pose_sigma
+            out[6 + i] += n2 * rate_sigma
+    return rng
 
 
-@compiled
+@inlined
 def _running_cost(weights, s, x, ref, tau, tau_ff):
     """s^T Q s + e^T Q_e e + (tau - tau_ff)^T R (tau - tau_ff) at one tick (Eq. 2.32 and its tracking form)."""
     total = 0.0
@@ -70,6 +118,63 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
                 e = wrap_angle(e)
             total += weights[1, i] * e * e
     return total
+
+
+@compiled_loop
+def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x, seed, cost_weights, tau_ff, tau_max,
+         tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, state, ws):
+    """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed; the logs
+    (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
+    telemetry delay); state: the controller's, zeroed; ws: zeroed workspace (128,). Returns (cost, steps done)."""
+    n_steps = ref.shape[0] - 1
+    record = eta_log.shape[0] > 0
+    h = dt / substeps
+    every = max(1, int(round(env[E_SAMPLE_PERIOD] / dt)))
+    late = measured.shape[0] - 1
+    ws_plant = ws[0:80]
+    eta_m = ws[80:86]
+    nu_m = ws[86:92]
+    tau_hat = ws[92:98]
+    tau = ws[98:104]
+    applied = ws[104:110]
+    s = ws[110:116]
+    grad = ws[116:122]
+    gamma = ws[122:128]
+    noise = env[E_NOISE:E_NOISE + 4]
+    total = 0.0
+    rng = np.uint64(seed)
+    slot = 0          # k % (late + 1): this tick's place in the ring
+    for k in range(n_steps + 1):
+        rng = _measure(x, noise, measured[slot], rng)
+        slot = slot + 1 if slot < late else 0   # the oldest measurement, k - late, is in the next place
+        sampled = k - late
+        if k == 0 or (sampled >= 0 and (every == 1 or sampled % every == 0)):
+            held = measured[slot if sampled >= 0 else 0]
+            for i in range(6):
+                eta_m[i] = held[i]
+                nu_m[i] = held[6 + i]
+        controller_step(kind, ctrl, params, table, table_xmax, eta_m, nu_m, ref[k], dt, state, tau, tau_hat, s, grad,
+                        gamma)
+        if record:
+            for i in range(6):
+                eta_log[k, i] = x[i]
+                nu_log[k, i] = x[6 + i]
+                tau_log[k, i] = tau[i]
+                tau_hat_log[k, i] = tau_hat[i]
+                s_log[k, i] = s[i]
+                gamma_log[k, i] = gamma[i]
+        if k == n_steps:
+            break
+        if _saturated(tau, tau_max):
+            return DIVERGED_COST, k
+        total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
+        for i in range(6):
+            applied[i] = min(max(tau[i], -tau_limit[i]), tau_limit[i])
+        for j in range(substeps):
+            rk4_step(plant, env, x, applied, k * dt + j * h, h, ws_plant)
+        if _diverged(x):
+            return DIVERGED_COST, k
+    return total, n_steps
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
@@ -92,61 +197,9 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
     stops at the last state before it failed). The *_log arrays are (B, N+1, 6) to record the true state and the
     commanded (unclipped) wrench, or (B, 0, 6) to skip recording.
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
-    n_runs = params.shape[0]
-    n_steps = ref.shape[0] - 1
-    record = eta_log.shape[1] > 0
-    h = dt / substeps
-    for b in range(n_runs):
-        np.random.seed(seeds[b])
-        x = x0.copy()
-        ws_plant = np.zeros(80)
-        every = max(1, int(round(env[b, E_SAMPLE_PERIOD] / dt)))
+    for b in range(params.shape[0]):
         late = max(0, int(round(env[b, E_SAMPLE_DELAY] / dt)))
-        measured = np.zeros((late + 1, 12))   # ring of the last late + 1 ticks' measurements
-        eta_m = np.zeros(6)
-        nu_m = np.zeros(6)
-        state = np.zeros(STATE_SIZE)
-        tau_hat = np.zeros(6)
-        tau = np.zeros(6)
-        applied = np.zeros(6)
-        s = np.zeros(6)
-        grad = np.zeros(6)
-        gamma = np.zeros(6)
-        noise = env[b, E_NOISE:E_NOISE + 4]
-        total = 0.0
-        done = n_steps
-        for k in range(n_steps + 1):
-            _measure(x, noise, measured[k % (late + 1)])
-            sampled = k - late
-            if k == 0 or (sampled >= 0 and sampled % every == 0):
-                held = measured[max(sampled, 0) % (late + 1)]
-                for i in range(6):
-                    eta_m[i] = held[i]
-                    nu_m[i] = held[6 + i]
-            controller_step(kind, ctrl, params[b], table, table_xmax, eta_m, nu_m, ref[k], dt, state, tau, tau_hat,
-                            s, grad, gamma)
-            if record:
-                for i in range(6):
-                    eta_log[b, k, i] = x[i]
-                    nu_log[b, k, i] = x[6 + i]
-                    tau_log[b, k, i] = tau[i]
-                    tau_hat_log[b, k, i] = tau_hat[i]
-                    s_log[b, k, i] = s[i]
-                    gamma_log[b, k, i] = gamma[i]
-            if k == n_steps:
-                break
-            if _saturated(tau, tau_max):
-                done = k
-                total = DIVERGED_COST
-                break
-            total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
-            for i in range(6):
-                applied[i] = min(max(tau[i], -tau_limit[i]), tau_limit[i])
-            for j in range(substeps):
-                rk4_step(plant[b], env[b], x, applied, k * dt + j * h, h, ws_plant)
-            if _diverged(x):
-                done = k
-                total = DIVERGED_COST
-                break
-        cost[b] = total
-        steps_done[b] = done
+        cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_xmax, ref, dt, substeps,
+                                      x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
+                                      nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
+                                      np.zeros((late + 1, 12)), np.zeros(STATE_SIZE), np.zeros(128))
