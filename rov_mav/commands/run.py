@@ -220,7 +220,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.guided import GuidedStream
     from rov_mav.flight.link import LinkError, Session
     from rov_mav.flight.runlog import RunLog
-    from rov_mav.flight.runner import Limits, Runner, RunOptions
+    from rov_mav.flight.runner import Limits, Runner, RunOptions, warm_up
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics
     from rov_mav.model.vehicle import load_vehicle
@@ -243,8 +243,22 @@ def main(args: argparse.Namespace) -> int:
         check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
     bridge, target, session = None, args.target, None
     sinks: list = [StatusLine()]
+    rerun_target = rerun = actuation = controller = None
+
+    def prepare_compute() -> None:
+        """The recording, the allocation and the law, and their first-call costs (imports, compiled code)."""
+        nonlocal rerun_target, rerun, actuation, controller
+        rerun_target, rerun = rerun_sink(args, model, mission, Path(f"out/run-{mission.name}/run.rrd"))
+        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
+                              pretension=args.pretension == "on")
+        controller = None if guided else Controller(model, settings)
+        warm_up(mission, controller, actuation, 1.0 / args.rate, args.approach_speed)
+
     try:
         if target is None:
+            # The built-in vehicle's clock runs from its start, under the mission's disturbance: what is slow to
+            # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick).
+            prepare_compute()
             bridge, target = _start_bridge(mission, args.speedup, key)
         session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
                                signing_key=key)
@@ -252,16 +266,19 @@ def main(args: argparse.Namespace) -> int:
             mission = _from_vehicle(session, args)
             limits = _limits(args, mission, Limits)
             check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
+        if actuation is None:
+            prepare_compute()
     except (LinkError, ConfigError) as exc:
         if session is not None:
             session.close()
         if bridge is not None:
             bridge.stop()
+        if rerun is not None:
+            rerun.close()
         if isinstance(exc, ConfigError):
             raise
         print(f"rov-mav run: error: {exc}", file=sys.stderr)
         return 1
-    default_recording = Path(f"out/run-{mission.name}/run.rrd")
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
@@ -277,13 +294,9 @@ def main(args: argparse.Namespace) -> int:
                 "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
             session.taps.append(run_log.log_mavlink)
             sinks.append(run_log)
-        rerun_target, rerun = rerun_sink(args, model, mission, default_recording)
         if rerun is not None:
             sinks.append(rerun)
-        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
-                              pretension=args.pretension == "on")
         stream = GuidedStream(session, args.guided_rate) if guided else None
-        controller = None if guided else Controller(model, settings)
         runner = Runner(session, mission, controller, actuation, options, sinks, true_disturbance, stream)
         result = runner.run()
     finally:

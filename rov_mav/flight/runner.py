@@ -137,6 +137,21 @@ class RunResult:
         }
 
 
+def warm_up(mission: Mission, controller: Controller | None, actuation: Actuation, period: float,
+            approach_speed: float) -> None:
+    """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
+    reference = mission.reference(0.0)
+    eta = reference[:6] + 0.1
+    if controller is not None:
+        controller.step(eta, np.zeros(6), reference, period)
+        controller.reset()
+    actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
+    actuation.command(np.zeros(6))
+    actuation.reset()
+    approach(eta, mission.start_pose, approach_speed)
+    tracking_errors(eta[None], reference[None, :6])
+
+
 class Runner:
     """Flies `mission` with `controller` over `session`; every sink gets log_tick / log_event / close."""
 
@@ -243,7 +258,7 @@ class Runner:
 
     def _prepare(self) -> None:
         s, o = self.session, self.options
-        self._warm_up()
+        warm_up(self.mission, self.controller, self.actuation, self.period, o.approach_speed)
         vehicle = s.connect(o.heartbeat_timeout)
         self.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
         since = s.clock.now()
@@ -325,19 +340,6 @@ class Runner:
         self.changed_functions += stale
         if not self._neutral():
             raise Abort("outputs left on RCIN passthrough and the vehicle does not confirm neutral")
-
-    def _warm_up(self) -> None:
-        """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
-        reference = self.mission.reference(0.0)
-        eta = reference[:6] + 0.1
-        if self.controller is not None:
-            self.controller.step(eta, np.zeros(6), reference, self.period)
-            self.controller.reset()
-        self.actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
-        self.actuation.command(np.zeros(6))
-        self.actuation.reset()
-        approach(eta, self.mission.start_pose, self.options.approach_speed)
-        tracking_errors(eta[None], reference[None, :6])
 
     def _use_gcs_sysid(self, found: tuple[str, int, int] | None, verdict: Verdict) -> None:
         """Speak as the vehicle's GCS sysid (ArduSub takes RC overrides only from it). When a pilot station's
