@@ -190,6 +190,11 @@ def _start_bridge(mission, speedup: float, key: bytes | None):
     return bridge, f"udpout:127.0.0.1:{port}"
 
 
+def _default_recording(mission) -> Path:
+    """Where a run records for Rerun without --rerun and without a display."""
+    return Path(f"out/run-{mission.name}/run.rrd")
+
+
 def _limits(args: argparse.Namespace, mission, limits_type):
     """The run's limits: each flag, else the mission's own; a path deeper than --max-depth is refused here."""
     lim = mission.limits
@@ -240,7 +245,7 @@ def main(args: argparse.Namespace) -> int:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
     if mission is not None:
-        check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
+        check_rerun_output(args, _default_recording(mission))
     bridge, target, session = None, args.target, None
     sinks: list = [StatusLine()]
     rerun_target = rerun = actuation = controller = None
@@ -248,7 +253,7 @@ def main(args: argparse.Namespace) -> int:
     def prepare_compute() -> None:
         """The recording, the allocation and the law, and their first-call costs (imports, compiled code)."""
         nonlocal rerun_target, rerun, actuation, controller
-        rerun_target, rerun = rerun_sink(args, model, mission, Path(f"out/run-{mission.name}/run.rrd"))
+        rerun_target, rerun = rerun_sink(args, model, mission, _default_recording(mission))
         actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
                               pretension=args.pretension == "on")
         controller = None if guided else Controller(model, settings)
@@ -265,7 +270,7 @@ def main(args: argparse.Namespace) -> int:
         if mission is None:
             mission = _from_vehicle(session, args)
             limits = _limits(args, mission, Limits)
-            check_rerun_output(args, Path(f"out/run-{mission.name}/run.rrd"))
+            check_rerun_output(args, _default_recording(mission))
         if actuation is None:
             prepare_compute()
     except (LinkError, ConfigError) as exc:

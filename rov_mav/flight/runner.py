@@ -139,7 +139,8 @@ class RunResult:
 
 def warm_up(mission: Mission, controller: Controller | None, actuation: Actuation, period: float,
             approach_speed: float) -> None:
-    """One tick's computations, so that the first real tick pays no first-call (compile, import) costs."""
+    """One tick's computations, so that the first real tick pays no first-call (compile, import) costs. The caller
+    runs it before the Runner takes the vehicle (`rov-mav run` before even starting its built-in vehicle)."""
     reference = mission.reference(0.0)
     eta = reference[:6] + 0.1
     if controller is not None:
@@ -258,7 +259,6 @@ class Runner:
 
     def _prepare(self) -> None:
         s, o = self.session, self.options
-        warm_up(self.mission, self.controller, self.actuation, self.period, o.approach_speed)
         vehicle = s.connect(o.heartbeat_timeout)
         self.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
         since = s.clock.now()
