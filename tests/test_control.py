@@ -8,7 +8,7 @@ from conftest import random_states
 
 from rov_mav.control import backstepping, law
 from rov_mav.control.controller import Controller, load_settings
-from rov_mav.model import dynamics
+from rov_mav.model import dynamics, kernel
 
 K1 = np.array([10, 1, 5.9, 1.7, 5.8, 0.8])
 K2 = np.array([5.2, 10, 1, 5.8, 1.9, 5.5])
@@ -35,7 +35,8 @@ def test_kernel_law_matches_matrix_form(vehicle, rng):
     p = vehicle.packed()
     tau, s, grad = np.zeros(6), np.zeros(6), np.zeros(6)
     for i in range(25):
-        backstepping.control_law(p, K1, K2, eta[i], nu[i], refs[i], tau_hat[i], tau, s, grad)
+        backstepping.control_law(p, K1, K2, eta[i], kernel.attitude_trig(eta[i]), nu[i], refs[i], tau_hat[i], tau, s,
+                                 grad)
         tau_ref, s_ref = law.control_law(vehicle, K1, K2, eta[i], nu[i], refs[i], tau_hat[i])
         np.testing.assert_allclose(tau, tau_ref, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(s, s_ref, atol=1e-12)

@@ -33,14 +33,14 @@ SCHEDULE_FUZZY = 2      # Mamdani FIS, tabulated (rov_mav.control.fuzzy)
 
 
 @inlined
-def control_law(m, k1, k2, eta, nu, ref, tau_hat, tau, s, grad):
+def control_law(m, k1, k2, eta, trig, nu, ref, tau_hat, tau, s, grad):
     """The corrected backstepping law (ERRATA 2, Eq. 2.17) and the adaptation direction (ERRATA 3, Eq. 2.22).
 
     tau  = M J^-1 (eta_dd_d - k1 e_dot - J_dot nu - k2 s) + C(nu) nu + D(nu) nu + g(eta) - tau_hat
     s    = e_dot + k1 e (Eq. 2.14), e = eta - eta_d with angle errors wrapped (Eq. 2.13)
     grad = (J M^-1)^T s = M^-T J^T s, so that d(tau_hat)/dt = Gamma grad.
-    ref: (18,) = [eta_d, eta_dot_d, eta_ddot_d]. Writes tau, s, grad (6,)."""
-    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
+    trig: attitude_trig(eta); ref: (18,) = [eta_d, eta_dot_d, eta_ddot_d]. Writes tau, s, grad (6,)."""
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(trig, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     a = grad    # scratch for the virtual acceleration; grad is written only after a is consumed
     for i in range(6):
@@ -96,12 +96,12 @@ def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
 
 
 @inlined
-def step(schedule, m, params, table, table_xmax, eta, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
+def step(schedule, m, params, table, table_xmax, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
     """One tick: tau from the law with the current estimate (state[0:6]), then the estimate advanced by dt.
 
     Writes tau, tau_hat (the estimate after the update), s, grad, gamma (6,) each."""
     estimate = state[0:6]
-    control_law(m, params[0:6], params[6:12], eta, nu, ref, estimate, tau, s, grad)
+    control_law(m, params[0:6], params[6:12], eta, trig, nu, ref, estimate, tau, s, grad)
     adaptation_rates(schedule, grad, params[12:18], table, table_xmax, gamma)
     adapt(schedule, grad, gamma, params[18:24], dt, estimate)
     for i in range(6):

@@ -19,6 +19,7 @@ from pydantic import Field, create_model
 from rov_mav import config
 from rov_mav.control import backstepping, ismc, law_kernel, pid, smc
 from rov_mav.control.fuzzy import FuzzySchedule, load_fuzzy
+from rov_mav.model import kernel
 from rov_mav.model.vehicle import Vehicle
 
 PositiveVec6 = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=6, max_length=6)]
@@ -181,7 +182,8 @@ class Controller:
         """tau for the measured state against reference (18,), then the state advanced by dt seconds."""
         kind, table, xmax = self._args
         tau, tau_hat, s, grad, gamma = (np.zeros(6) for _ in range(5))
-        law_kernel.controller_step(kind, self._model, self._params, table, xmax, np.asarray(eta, float),
+        eta = np.asarray(eta, float)
+        law_kernel.controller_step(kind, self._model, self._params, table, xmax, eta, kernel.attitude_trig(eta),
                                    np.asarray(nu, float), np.asarray(reference, float), float(dt), self.state,
                                    tau, tau_hat, s, grad, gamma)
         return ControlOutput(tau, tau_hat, s, grad, gamma)

@@ -53,12 +53,12 @@ def tanh(x):
 
 
 @inlined
-def step(m, params, eta, nu, ref, dt, state, tau, tau_hat, s):
+def step(m, params, eta, trig, nu, ref, dt, state, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each; updates state."""
     k_pos, kp, k, phi = params[0:6], params[6:12], params[12:18], params[18:24]
     integral, initial = state[0:6], state[6:12]
     started = state[12] != 0.0
-    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(trig, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     target, accel = s, tau_hat   # scratch in the eta frame, consumed before s and tau_hat are written
     for i in range(6):

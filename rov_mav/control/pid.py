@@ -38,14 +38,12 @@ STATE_SIZE = 19
 
 
 @inlined
-def step(params, eta, nu, ref, dt, state, tau, tau_hat, s):
+def step(params, eta, trig, nu, ref, dt, state, tau, tau_hat, s):
     """One tick of the cascade: writes tau, tau_hat (6,), s = 0 (no sliding variable); updates state."""
     kp_pos, kp, ki, kd, i_max = params[0:6], params[6:12], params[12:18], params[18:24], params[24:30]
     integrator, last_error, derivative = state[0:6], state[6:12], state[12:18]
     started = state[18] != 0.0
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    cpsi, spsi = math.cos(eta[5]), math.sin(eta[5])
+    cphi, sphi, cth, sth, cpsi, spsi = trig
     R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
     u, v, w = nu[0], nu[1], nu[2]
     velocity_ned = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w, R[6] * u + R[7] * v + R[8] * w)

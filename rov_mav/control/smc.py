@@ -45,10 +45,10 @@ def saturation(x):
 
 
 @inlined
-def step(m, params, eta, nu, ref, tau, tau_hat, s):
+def step(m, params, eta, trig, nu, ref, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each."""
     lam, k, phi = params[0:6], params[6:12], params[12:18]
-    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(eta, nu)
+    cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(trig, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     acc = tau_hat   # scratch: the reference acceleration in the eta frame, consumed before tau_hat is written
     for i in range(6):

@@ -282,12 +282,24 @@ def body_from_earth(cphi, sphi, cth, sth, R, a):
 
 
 @inlined
-def state_kinematics(eta, nu):
-    """What every law starts from: (cphi, sphi, cth, sth, R, eta_dot, A) with R the body-to-NED rotation (9-tuple,
-    row-major), eta_dot = J(eta) nu (Eq. 2.4) and A = J_dot(eta) nu, both 6-tuples."""
-    cphi, sphi = math.cos(eta[3]), math.sin(eta[3])
-    cth, sth = math.cos(eta[4]), math.sin(eta[4])
-    R = rotation(cphi, sphi, cth, sth, math.cos(eta[5]), math.sin(eta[5]))
+def trig_near(eta, x, ws):
+    """attitude_trig(eta) for an attitude near the plant state x's: turned from the trig rk4_step carried for x in
+    its workspace ws by eta - x (the sensor noise and the telemetry delay, small), when that trig is there and not
+    due for its refresh; computed afresh otherwise."""
+    if ws[75] > 0.0 and x[3] == ws[66] and x[4] == ws[67] and x[5] == ws[68]:
+        cphi, sphi = turned(ws[69], ws[70], eta[3], eta[3] - x[3])
+        cth, sth = turned(ws[71], ws[72], eta[4], eta[4] - x[4])
+        cpsi, spsi = turned(ws[73], ws[74], eta[5], eta[5] - x[5])
+        return cphi, sphi, cth, sth, cpsi, spsi
+    return attitude_trig(eta)
+
+
+@inlined
+def state_kinematics(trig, nu):
+    """What every law starts from, given trig = attitude_trig(eta): (cphi, sphi, cth, sth, R, eta_dot, A) with R the
+    body-to-NED rotation (9-tuple, row-major), eta_dot = J(eta) nu (Eq. 2.4) and A = J_dot(eta) nu, both 6-tuples."""
+    cphi, sphi, cth, sth, cpsi, spsi = trig
+    R = rotation(cphi, sphi, cth, sth, cpsi, spsi)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     dphi, dth, dpsi = euler_rates(cphi, sphi, cth, sth, p, q, r)
     eta_dot = (R[0] * u + R[1] * v + R[2] * w, R[3] * u + R[4] * v + R[5] * w,

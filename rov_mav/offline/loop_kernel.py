@@ -18,6 +18,7 @@ from rov_mav.model.kernel import (
     compiled_loop,
     inlined,
     rk4_step,
+    trig_near,
     wrap_angle,
 )
 
@@ -125,7 +126,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
          tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, state, ws):
     """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed; the logs
     (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
-    telemetry delay); state: the controller's, zeroed; ws: zeroed workspace (128,). Returns (cost, steps done)."""
+    telemetry delay); state: the controller's, zeroed; ws: zeroed workspace (134,). Returns (cost, steps done)."""
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[0] > 0
     h = dt / substeps
@@ -140,6 +141,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
     s = ws[110:116]
     grad = ws[116:122]
     gamma = ws[122:128]
+    trig_m = ws[128:134]   # attitude_trig(eta_m), computed when a sample arrives
     noise = env[E_NOISE:E_NOISE + 4]
     total = 0.0
     rng = np.uint64(seed)
@@ -153,8 +155,10 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
             for i in range(6):
                 eta_m[i] = held[i]
                 nu_m[i] = held[6 + i]
-        controller_step(kind, ctrl, params, table, table_xmax, eta_m, nu_m, ref[k], dt, state, tau, tau_hat, s, grad,
-                        gamma)
+            trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5] = trig_near(eta_m, x, ws_plant)
+        trig = (trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5])
+        controller_step(kind, ctrl, params, table, table_xmax, eta_m, trig, nu_m, ref[k], dt, state, tau, tau_hat, s,
+                        grad, gamma)
         if record:
             for i in range(6):
                 eta_log[k, i] = x[i]
@@ -202,4 +206,4 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
         cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_xmax, ref, dt, substeps,
                                       x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
                                       nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
-                                      np.zeros((late + 1, 12)), np.zeros(STATE_SIZE), np.zeros(128))
+                                      np.zeros((late + 1, 12)), np.zeros(STATE_SIZE), np.zeros(134))
