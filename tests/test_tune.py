@@ -60,8 +60,9 @@ def test_feedforward_is_what_the_compiled_law_commands_on_the_reference(vehicle,
         R = np.array(kernel.rotation(1.0, 0.0, 1.0, 0.0, np.cos(ref[k, 5]), np.sin(ref[k, 5]))).reshape(3, 3)
         nu = np.concatenate([R.T @ ref[k, 6:9], ref[k, 9:12]])        # roll = pitch = 0 on the line
         tau, s, grad = np.zeros(6), np.zeros(6), np.zeros(6)
-        backstepping.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, ref[k, :6].copy(), nu, ref[k], np.zeros(6),
-                           tau, s, grad)
+        eta = ref[k, :6].copy()
+        backstepping.control_law(vehicle.packed(), fuzzy.k1, fuzzy.k2, eta, kernel.attitude_trig(eta), nu, ref[k],
+                                 np.zeros(6), tau, s, grad)
         np.testing.assert_allclose(s, 0.0, atol=1e-12)
         np.testing.assert_allclose(tau, tau_ff[k], rtol=1e-9, atol=1e-9)
 

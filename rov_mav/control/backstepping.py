@@ -68,15 +68,16 @@ def control_law(m, k1, k2, eta, trig, nu, ref, tau_hat, tau, s, grad):
 
 
 @inlined
-def adaptation_rates(schedule, grad, gamma_const, table, table_xmax, gamma):
-    """Gamma per body DOF: constant, or the tabulated Mamdani FIS of |grad_i| (Eq. 2.29); writes gamma (6,)."""
-    n = table.shape[1]
+def adaptation_rates(schedule, grad, gamma_const, table, table_scale, gamma):
+    """Gamma per body DOF: constant, or the tabulated Mamdani FIS of |grad_i| (Eq. 2.29), table_scale (6,) its
+    samples per unit of |grad_i|; writes gamma (6,)."""
+    last = table.shape[1] - 1
     for i in range(6):
         if schedule == SCHEDULE_CONSTANT:
             gamma[i] = gamma_const[i]
         elif schedule == SCHEDULE_FUZZY:
-            pos = min(abs(grad[i]) / table_xmax[i], 1.0) * (n - 1)
-            k = min(int(pos), n - 2)
+            pos = min(abs(grad[i]) * table_scale[i], last)
+            k = min(int(pos), last - 1)
             frac = pos - k
             gamma[i] = table[i, k] * (1.0 - frac) + table[i, k + 1] * frac
         else:
@@ -96,13 +97,13 @@ def adapt(schedule, grad, gamma, d_max, dt, tau_hat):
 
 
 @inlined
-def step(schedule, m, params, table, table_xmax, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
+def step(schedule, m, params, table, table_scale, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
     """One tick: tau from the law with the current estimate (state[0:6]), then the estimate advanced by dt.
 
     Writes tau, tau_hat (the estimate after the update), s, grad, gamma (6,) each."""
     estimate = state[0:6]
     control_law(m, params[0:6], params[6:12], eta, trig, nu, ref, estimate, tau, s, grad)
-    adaptation_rates(schedule, grad, params[12:18], table, table_xmax, gamma)
+    adaptation_rates(schedule, grad, params[12:18], table, table_scale, gamma)
     adapt(schedule, grad, gamma, params[18:24], dt, estimate)
     for i in range(6):
         tau_hat[i] = estimate[i]

@@ -114,8 +114,8 @@ class ControllerSettings:
         return replace(self, params=params)
 
     def kernel_arguments(self) -> tuple:
-        """(kind, table, table_xmax) as the kernel takes them beside the parameter vector."""
-        return (KINDS[self.kind][0], self.fuzzy.table, self.fuzzy.table_xmax)
+        """(kind, table, table_scale) as the kernel takes them beside the parameter vector."""
+        return (KINDS[self.kind][0], self.fuzzy.table, self.fuzzy.table_scale)
 
     def as_yaml(self) -> dict[str, Any]:
         """Every group as plain numbers: a gains file that reproduces this controller."""
@@ -180,10 +180,10 @@ class Controller:
 
     def step(self, eta: np.ndarray, nu: np.ndarray, reference: np.ndarray, dt: float) -> ControlOutput:
         """tau for the measured state against reference (18,), then the state advanced by dt seconds."""
-        kind, table, xmax = self._args
+        kind, table, scale = self._args
         tau, tau_hat, s, grad, gamma = (np.zeros(6) for _ in range(5))
         eta = np.asarray(eta, float)
-        law_kernel.controller_step(kind, self._model, self._params, table, xmax, eta, kernel.attitude_trig(eta),
+        law_kernel.controller_step(kind, self._model, self._params, table, scale, eta, kernel.attitude_trig(eta),
                                    np.asarray(nu, float), np.asarray(reference, float), float(dt), self.state,
                                    tau, tau_hat, s, grad, gamma)
         return ControlOutput(tau, tau_hat, s, grad, gamma)

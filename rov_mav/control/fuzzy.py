@@ -102,6 +102,11 @@ class FuzzySchedule:
         """Raw |grad_i| at which each table ends (the largest rule centre over the input gain), (6,)."""
         return np.array([s.input_centres.max() for s in self.systems]) / self.input_gains
 
+    @property
+    def table_scale(self) -> np.ndarray:
+        """Table samples per unit of raw |grad_i|, (6,): the kernel's index is |grad_i| times this."""
+        return (self.table_points - 1) / self.table_xmax
+
     @cached_property
     def table(self) -> np.ndarray:
         """gamma sampled at table_points uniform raw inputs in [0, table_xmax_i], (6, table_points).

@@ -77,14 +77,15 @@ def step(m, params, eta, trig, nu, ref, dt, state, tau, tau_hat, s):
     c = coriolis_times_nu(m, u, v, w, p, q, r)
     d = damping_times_nu(m, u, v, w, p, q, r)
     g = restoring(m, cphi, sphi, cth, sth)
-    for i in range(6):
+    for i in range(6):   # no calls in this loop: it unrolls, and the tuples' indices are constants
         error = nu_d[i] - nu[i]
         if started:
             integral[i] += error * dt
         else:
             initial[i] = error
         s[i] = error - initial[i] + kp[i] * integral[i]
-        switching = k[i] * tanh(s[i] / phi[i])
-        tau[i] = mass_row(m, i, a[0], a[1], a[2], a[3], a[4], a[5]) + c[i] + d[i] + g[i] + switching
-        tau_hat[i] = -switching
+        tau[i] = mass_row(m, i, a[0], a[1], a[2], a[3], a[4], a[5]) + c[i] + d[i] + g[i]
+    for i in range(6):
+        tau_hat[i] = -k[i] * tanh(s[i] / phi[i])
+        tau[i] -= tau_hat[i]
     state[12] = 1.0

@@ -23,14 +23,15 @@ STATE_SIZE = max(backstepping.STATE_SIZE, pid.STATE_SIZE, smc.STATE_SIZE, ismc.S
 
 
 @inlined
-def controller_step(kind, m, params, table, table_xmax, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
+def controller_step(kind, m, params, table, table_scale, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad, gamma):
     """One control tick of controller `kind` for the measured eta, nu (6,) against ref (18,) = [eta_d, eta_dot_d,
     eta_ddot_d], with trig = attitude_trig(eta), the controller's model m (packed vehicle), parameters `params` and,
-    for the fuzzy schedule, the rate table. Advances `state` (STATE_SIZE,) by dt; writes tau (the body wrench), tau_hat (the wrench the law
-    holds against the disturbance), s (its sliding variable), grad and gamma (the adaptation's direction and rates),
-    (6,) each: zeros where a law has no such quantity."""
+    for the fuzzy schedule, the rate table and its samples per unit of input (table_scale). Advances `state`
+    (STATE_SIZE,) by dt; writes tau (the body wrench), tau_hat (the wrench the law holds against the disturbance),
+    s (its sliding variable), grad and gamma (the adaptation's direction and rates), (6,) each: zeros where a law
+    has no such quantity."""
     if kind <= KIND_FUZZY:
-        backstepping.step(kind, m, params, table, table_xmax, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad,
+        backstepping.step(kind, m, params, table, table_scale, eta, trig, nu, ref, dt, state, tau, tau_hat, s, grad,
                           gamma)
         return
     for i in range(6):

@@ -122,11 +122,12 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 
 @compiled_loop
-def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x, seed, cost_weights, tau_ff, tau_max,
+def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x, seed, cost_weights, tau_ff, tau_max,
          tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, state, ws):
     """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed; the logs
     (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
-    telemetry delay); state: the controller's, zeroed; ws: zeroed workspace (134,). Returns (cost, steps done)."""
+    telemetry delay; only the ticks telemetry delivers are measured); state: the controller's, zeroed; ws: zeroed
+    workspace (134,). Returns (cost, steps done)."""
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[0] > 0
     h = dt / substeps
@@ -147,7 +148,8 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
     rng = np.uint64(seed)
     slot = 0          # k % (late + 1): this tick's place in the ring
     for k in range(n_steps + 1):
-        rng = _measure(x, noise, measured[slot], rng)
+        if every == 1 or k % every == 0:   # a measurement telemetry will deliver (late ticks from now)
+            rng = _measure(x, noise, measured[slot], rng)
         slot = slot + 1 if slot < late else 0   # the oldest measurement, k - late, is in the next place
         sampled = k - late
         if k == 0 or (sampled >= 0 and (every == 1 or sampled % every == 0)):
@@ -157,7 +159,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
                 nu_m[i] = held[6 + i]
             trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5] = trig_near(eta_m, x, ws_plant)
         trig = (trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5])
-        controller_step(kind, ctrl, params, table, table_xmax, eta_m, trig, nu_m, ref[k], dt, state, tau, tau_hat, s,
+        controller_step(kind, ctrl, params, table, table_scale, eta_m, trig, nu_m, ref[k], dt, state, tau, tau_hat, s,
                         grad, gamma)
         if record:
             for i in range(6):
@@ -182,15 +184,15 @@ def _fly(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
-def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, substeps, x0, seeds, cost_weights,
+def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x0, seeds, cost_weights,
                    tau_ff, tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, cost, steps_done):
     """Closed-loop runs of a batch of vehicles: controller at 1/dt, plant by RK4 at dt/substeps.
 
     plant (B, 92), env (B, 22): each run's true vehicle and environment; ctrl (92,): the controller's model;
     params (B, P): each run's controller parameter vector for controller `kind` (`law_kernel.controller_step`,
-    with the fuzzy rate table, table_xmax); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for sensor noise.
-    The controller sees the measured state (true state plus the environment's sensor noise, drawn every tick) as
-    telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
+    with the fuzzy rate table and its table_scale); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for
+    sensor noise. The controller sees the measured state (true state plus the environment's sensor noise, drawn for
+    each tick whose measurement telemetry delivers) as telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
     the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
@@ -203,7 +205,7 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_xmax, ref, dt, s
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     for b in range(params.shape[0]):
         late = max(0, int(round(env[b, E_SAMPLE_DELAY] / dt)))
-        cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_xmax, ref, dt, substeps,
+        cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_scale, ref, dt, substeps,
                                       x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
                                       nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
                                       np.zeros((late + 1, 12)), np.zeros(STATE_SIZE), np.zeros(134))
