@@ -21,6 +21,7 @@ from rov_mav.model.kernel import (
     trig_near,
     wrap_angle,
 )
+from rov_mav.offline.noise import normal
 
 # Limits beyond which a simulated vehicle counts as diverged (Assumption 1 and sanity bounds).
 MAX_TILT = 1.4          # rad, |phi|, |theta| (the Euler kinematics are singular at pi/2)
@@ -57,39 +58,6 @@ def _saturated(tau, tau_max):
     return False
 
 
-# Sensor noise: splitmix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014)
-# seeded per run, normal pairs by Marsaglia's polar method; a fourth of the cost of np.random.normal in Numba
-# (its thread-local Mersenne Twister), which made a noisy run cost twice a clean one.
-_GOLDEN_GAMMA = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
-_TO_UNIT = 2.0 ** -53
-
-
-@inlined
-def _uniform(rng):
-    """(next state, a uniform double in [0, 1)) from the splitmix64 state rng (uint64)."""
-    rng = rng + _GOLDEN_GAMMA
-    z = (rng ^ (rng >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
-    z = z ^ (z >> np.uint64(31))
-    return rng, (z >> np.uint64(11)) * _TO_UNIT
-
-
-@inlined
-def _normal_pair(rng):
-    """(next state, two independent standard normals): Marsaglia's polar method."""
-    while True:
-        rng, u1 = _uniform(rng)
-        rng, u2 = _uniform(rng)
-        a = 2.0 * u1 - 1.0
-        b = 2.0 * u2 - 1.0
-        r2 = a * a + b * b
-        if 0.0 < r2 < 1.0:
-            f = math.sqrt(-2.0 * math.log(r2) / r2)
-            return rng, f * a, f * b
-
-
 @inlined
 def _measure(x, noise, out, rng):
     """The state as the sensors give it: out (12,) = x plus white noise (position, attitude, velocity, rate std);
@@ -100,7 +68,8 @@ def _measure(x, noise, out, rng):
         out[i] = x[i]
         out[6 + i] = x[6 + i]
         if pose_sigma > 0.0 or rate_sigma > 0.0:
-            rng, n1, n2 = _normal_pair(rng)
+            rng, n1 = normal(rng)
+            rng, n2 = normal(rng)
             out[i] += n1 * pose_sigma
             out[6 + i] += n2 * rate_sigma
     return rng
