@@ -16,6 +16,10 @@ import math
 
 from numba import njit
 
+from rov_mav.model import kernel_cache
+
+kernel_cache.install()   # before any kernel is decorated: a kernel's cache is stale after an edit to any kernel source
+
 P_M = 0
 P_MINV = 36
 P_DLIN = 72
@@ -287,6 +291,8 @@ def trig_near(eta, x, ws):
     its workspace ws by eta - x (the sensor noise and the telemetry delay, small), when that trig is there and not
     due for its refresh; computed afresh otherwise."""
     if ws[75] > 0.0 and x[3] == ws[66] and x[4] == ws[67] and x[5] == ws[68]:
+        if eta[3] == x[3] and eta[4] == x[4] and eta[5] == x[5]:
+            return ws[69], ws[70], ws[71], ws[72], ws[73], ws[74]
         cphi, sphi = turned(ws[69], ws[70], eta[3], eta[3] - x[3])
         cth, sth = turned(ws[71], ws[72], eta[4], eta[4] - x[4])
         cpsi, spsi = turned(ws[73], ws[74], eta[5], eta[5] - x[5])

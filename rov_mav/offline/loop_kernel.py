@@ -38,9 +38,11 @@ def printed_cost(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 @inlined
 def _diverged(x):
+    total = 0.0
     for i in range(12):
-        if not math.isfinite(x[i]):
-            return True
+        total += x[i]
+    if not math.isfinite(total):   # a NaN or an infinity anywhere in x
+        return True
     if abs(x[3]) > MAX_TILT or abs(x[4]) > MAX_TILT:
         return True
     for i in range(6, 12):
