@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import MISSIONS
 
-from rov_mav import cli
+from rov_mav import cli, config
 from rov_mav.control import ismc
 from rov_mav.control.controller import KINDS, Controller, load_settings
 from rov_mav.mission.missions import load_mission
@@ -118,3 +118,19 @@ def test_ismc_tanh_is_the_library_tanh():
     """ismc's one-exp tanh, within 3e-16 of numpy's over its whole range (saturated tails, zero, both signs)."""
     for x in np.concatenate([np.linspace(-30.0, 30.0, 6001), [0.0, -0.0, 1e-300, -1e-12, 800.0, -800.0]]):
         assert abs(ismc.tanh(x) - np.tanh(x)) <= 3e-16
+
+
+def test_the_report_law_ships_our_pso_gains_and_flies_the_reports_on_request():
+    """Each kind of the report's law defaults to its own gains from our PSO (rov_mav/data/KIND.yaml, over the family's
+    file); `--gains report` gives the report's Eqs. 4.1-4.2, which no other family has."""
+    report = load_settings("fuzzy", "report")
+    np.testing.assert_array_equal(report.k1, [10.0, 1.0, 5.9, 1.7, 5.8, 0.8])     # Eq. 4.1
+    np.testing.assert_array_equal(report.k2, [5.2, 10.0, 1.0, 5.8, 1.9, 5.5])     # Eq. 4.2
+    tuned = {kind: load_settings(kind) for kind in ("baseline", "constant", "fuzzy")}
+    assert len({tuple(s.gains) for s in tuned.values()} | {tuple(report.gains)}) == 4
+    for settings in tuned.values():
+        np.testing.assert_array_equal(settings.constant_gamma, report.constant_gamma)   # from the family's file
+        lower, upper = settings.family.default_bounds()
+        assert np.all((settings.gains >= lower) & (settings.gains <= upper))
+    with pytest.raises(config.ConfigError, match="--gains report: the report's gains"):
+        load_settings("smc", "report")

@@ -14,6 +14,7 @@ from rov_mav.flight.stations import ECHO_MEMORY, OverrideEcho
 from rov_mav.flight.vehicle_clock import VehicleClock
 from rov_mav.flight.vehicle_state import StateDecoder
 from rov_mav.mission.approach import approach
+from rov_mav.model import dynamics
 from rov_mav.model.thrusters import load_t200
 
 
@@ -37,8 +38,11 @@ def test_the_state_is_in_the_body_frame_and_on_the_vehicle_clock():
     assert decoder.update(pos)
     state = decoder.state(received=0.0)
     assert state.t == pytest.approx(2.010)
-    np.testing.assert_allclose(state.eta, [1.0, 2.0, 3.0, 0.0, 0.0, yaw])
-    np.testing.assert_allclose(state.nu, [0.5, 0.0, 0.1, 0.01, 0.02, 0.03], atol=1e-12)   # surge forward
+    # the attitude, 10 ms older than the position, brought forward by its rates (level: T(Theta) = I)
+    np.testing.assert_allclose(state.eta, [1.0, 2.0, 3.0, 0.0001, 0.0002, yaw + 0.0003], rtol=0, atol=1e-12)
+    body = dynamics.rotation(state.eta).T @ [0.0, 0.5, 0.1]                    # surge forward, at that attitude
+    np.testing.assert_allclose(state.nu, [*body, 0.01, 0.02, 0.03], atol=1e-12)
+    np.testing.assert_allclose(body, [0.5, 0.0, 0.1], atol=3e-4)
     assert not decoder.update(pos)                             # a pair needs both messages again
 
 
@@ -157,3 +161,22 @@ def test_override_echo_knows_its_own_commands_by_value_and_a_strangers_after_two
         echo.sent_now([1600] * 8)
     echo.misses = 0
     assert not echo.report(ours[-1]) and echo.report(ours[-1])            # forgotten after ECHO_MEMORY sends
+
+
+def test_streams_half_a_period_apart_keep_their_pairing_after_a_loss():
+    """ATTITUDE at k*20 ms, LOCAL_POSITION_NED 10 ms later: each position pairs with the attitude before it. After a
+    lost ATTITUDE (or a lost position) the pairing stays (attitude k, position k), not (position k, attitude k+1)
+    for the rest of the run, which would date every later position half a period early."""
+    for lost in ("ATTITUDE", "LOCAL_POSITION_NED"):
+        decoder = StateDecoder()
+        states = []
+        for k in range(30):
+            msgs = [mavlink.MAVLink_attitude_message(1000 + 20 * k, 0.0, 0.0, float(k), 0.0, 0.0, 0.0),
+                    mavlink.MAVLink_local_position_ned_message(1010 + 20 * k, float(k), 0.0, 0.0, 0.0, 0.0, 0.0)]
+            for msg in msgs:
+                if k == 12 and msg.get_type() == lost:
+                    continue
+                if decoder.update(msg):
+                    states.append(decoder.state(received=0.0))
+        assert [s.eta[0] for s in states] == [k for k in range(30) if k != 12], lost
+        assert all(s.eta[0] == s.eta[5] and s.t == pytest.approx(1.010 + 0.02 * s.eta[0]) for s in states), lost

@@ -189,7 +189,7 @@ def test_dask_local_cluster_gives_the_in_process_result(vehicle, line, fuzzy):
 def test_tune_command_writes_gains_that_simulate_accepts_and_reproduce_the_cost(tmp_path, capsys, vehicle, line):
     gains = tmp_path / "tuned" / "gains.yaml"
     assert cli.main(["tune", str(MISSIONS / "line.yaml"), "--particles", "8", "--iterations", "4", "--duration", "4",
-                     "--bounds", "0.5,8", "--seed", "3", "--out", str(gains)]) == 0
+                     "--bounds", "0.5,8", "--seed", "3", "--gains", "report", "--out", str(gains)]) == 0
     assert "best=" in capsys.readouterr().err                           # the progress bar shows the best cost
     comparison = json.loads((gains.parent / "comparison.json").read_text())
     assert (gains.parent / "convergence.png").stat().st_size > 10_000

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.control.controller import load_settings
+from rov_mav.control.controller import REPORT_GAINS, load_settings
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import load_mission
 from rov_mav.model.vehicle import load_vehicle
@@ -33,7 +33,7 @@ def run_all():
         for error_name, factor in PLANT_ERRORS.items():
             plant = model.scaled(factor)
             for kind in CONTROLLERS:
-                trace = simulate(mission, load_settings(kind), model, plant)
+                trace = simulate(mission, load_settings(kind, REPORT_GAINS), model, plant)
                 traces[(mission_name, error_name, kind)] = trace
                 m = trace_metrics(mission_name, kind, trace)
                 estimate_error = np.abs(np.array(m["final_disturbance_estimate"]) - mission.environment.disturbance)

@@ -72,8 +72,9 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
                             "(no law of ours: ArduSub's GUIDED mode flies the reference); default: fuzzy")
     group.add_argument("--gains", metavar="FILE",
                        help="YAML with any of the controller's keys (e.g. the output of `rov-mav tune`): k1, k2, "
-                            "constant_gamma, d_max for the report's law (default: Eqs. 4.1-4.2); pid, smc, ismc: see "
-                            "their files in rov_mav/data")
+                            "constant_gamma, d_max for the report's law (default: our PSO's, tuned on the link `run` "
+                            "flies; the word `report`: the report's own Eqs. 4.1-4.2); pid, smc, ismc: see their "
+                            "files in rov_mav/data")
     group.add_argument("--k1", type=six_floats, metavar="A,B,C,D,E,F", help="k1 diagonal, overrides --gains")
     group.add_argument("--k2", type=six_floats, metavar="A,B,C,D,E,F", help="k2 diagonal, overrides --gains")
     group.add_argument("--fuzzy-rules", metavar="FILE", help="fuzzy rule base YAML (default: Appendix III)")

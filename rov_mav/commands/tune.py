@@ -64,7 +64,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                      "2.30-2.33; pid, smc, ismc: the groups their gains files list first): each iteration simulates the "
                      "whole swarm (x scenarios) through the compiled closed loop. Writes a gains YAML that "
                      "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
-                     "against the starting gains (default: the report's Eqs. 4.1-4.2) on the mission.")
+                     "against the starting gains (default: the controller's shipped gains; `--gains report`: the "
+                     "report's Eqs. 4.1-4.2) on the mission.")
     p.add_argument("mission", help=MISSION_HELP + "; the report's tuning run is missions/line.yaml")
     add_plan_options(p)
     add_controller_options(p)

@@ -68,6 +68,11 @@ PID = _family("pid", "pid.yaml", pid, nonnegative=("ki_vel", "kd_vel", "i_max"))
 SMC = _family("smc", "smc.yaml", smc)
 ISMC = _family("ismc", "ismc.yaml", ismc)
 
+# The report's law's kinds ship our PSO's k1, k2 over the family's file, whose k1, k2 are the report's own optimum
+# (Eqs. 4.1-4.2), flown with `--gains report`.
+KIND_GAINS = {"baseline": "baseline.yaml", "constant": "constant.yaml", "fuzzy": "fuzzy.yaml"}
+REPORT_GAINS = "report"
+
 # --controller NAME: (kernel kind id, family)
 KINDS = {"baseline": (law_kernel.KIND_BASELINE, BACKSTEPPING), "constant": (law_kernel.KIND_CONSTANT, BACKSTEPPING),
          "fuzzy": (law_kernel.KIND_FUZZY, BACKSTEPPING), "pid": (law_kernel.KIND_PID, PID),
@@ -127,15 +132,29 @@ def default_controller_path(family: Family = BACKSTEPPING) -> Path:
     return Path(str(resources.files("rov_mav") / "data" / family.file))
 
 
+def default_gains_paths(kind: str) -> list[Path]:
+    """The shipped files a kind's settings come from, in order: its family's, then its own gains (if any)."""
+    family = KINDS[kind][1]
+    own = [Path(str(resources.files("rov_mav") / "data" / KIND_GAINS[kind]))] if kind in KIND_GAINS else []
+    return [default_controller_path(family), *own]
+
+
 def load_settings(kind: str = "fuzzy", gains_file: str | Path | None = None,
                   fuzzy_file: str | Path | None = None, k1: list[float] | None = None,
                   k2: list[float] | None = None) -> ControllerSettings:
-    """Shipped defaults, overridden by a gains file, overridden by explicit k1/k2 (backstepping only, e.g. from the
-    command line)."""
+    """Shipped defaults, overridden by a gains file (`report`: the report's Eqs. 4.1-4.2 for its law), overridden by
+    explicit k1/k2 (backstepping only, e.g. from the command line)."""
     if kind not in KINDS:
         raise config.ConfigError(f"controller: unknown kind '{kind}' (choose from {', '.join(KINDS)})")
     family = KINDS[kind][1]
-    merged = config.load(family.schema, default_controller_path(family)).model_dump()
+    merged = {}
+    for path in default_gains_paths(kind):
+        merged.update(config.load(family.schema, path).model_dump(exclude_none=True))
+    if gains_file is not None and str(gains_file) == REPORT_GAINS:
+        if family is not BACKSTEPPING:
+            raise config.ConfigError(f"--gains {REPORT_GAINS}: the report's gains (Eqs. 4.1-4.2) are its law's "
+                                     f"(baseline, constant, fuzzy), not {kind}'s")
+        gains_file = default_controller_path(family)
     if gains_file is not None:
         merged.update(config.load(family.schema, gains_file).model_dump(exclude_none=True))
     for name, value in (("k1", k1), ("k2", k2)):

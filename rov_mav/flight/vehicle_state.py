@@ -2,9 +2,13 @@
 
 eta = [x, y, z (LOCAL_POSITION_NED), roll, pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
 (blended with the position's rate below `velocity_blend` rad/s: `VelocityBlend`) rotated into the body frame, and
-ATTITUDE's body rates. A sample is complete once both messages arrived since the last one with time_boot_ms within
+ATTITUDE's body rates. The older of the two messages is brought forward to the newer one's time by its own rates
+(the reported NED velocity, the body rates through T(Theta)), so that position and attitude are of one instant.
+A sample is complete once both messages arrived since the last one with time_boot_ms within
 half a stream period of each other: a message whose partner was lost is dropped, so one lost packet does not pair
-every later position with the next period's attitude. The sample's time is the newer of
+every later position with the next period's attitude. Streams exactly half a period apart (the built-in vehicle's)
+could pair either way; a half as near the next message as the last (within TIE_MS) keeps the pairing the streams had,
+so a loss does not shift every later sample's position by half a period. The sample's time is the newer of
 their time_boot_ms, so dt is vehicle time whatever the vehicle's speedup.
 """
 
@@ -15,10 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from rov_mav.flight.velocity_blend import VelocityBlend
-from rov_mav.model.dynamics import rotation
+from rov_mav.model.dynamics import euler_rate_matrix, rotation
 
 STATE_MESSAGES = ("ATTITUDE", "LOCAL_POSITION_NED")
 REBOOT_MS = 1000          # a stamp this far behind the last one is a new boot, not a late packet
+TIE_MS = 1                # halves this close to half a period apart could pair either way (stamps are whole ms)
 
 
 @dataclass(frozen=True)
@@ -40,6 +45,7 @@ class StateDecoder:
         self._fresh: set[str] = set()
         self._period_ms: dict[str, int] = {}  # the interval before each kind's latest message
         self._pair: tuple | None = None       # (ATTITUDE, LOCAL_POSITION_NED) of the latest complete sample
+        self._leader: str | None = None       # the kind that came first in the latest complete sample
 
     @property
     def attitude(self):
@@ -75,6 +81,11 @@ class StateDecoder:
         self._fresh.add(kind)
         if len(self._fresh) < len(STATE_MESSAGES):
             return False
+        if (self._leader == kind
+                and msg.time_boot_ms - self._latest[partner].time_boot_ms >= self._tolerance_ms() - TIE_MS):
+            self._fresh.discard(partner)      # as near the next period's half: pair as the streams did
+            return False
+        self._leader = partner
         self._fresh.clear()
         self._pair = (self._latest["ATTITUDE"], self._latest["LOCAL_POSITION_NED"])
         return True
@@ -87,9 +98,15 @@ class StateDecoder:
         """The latest complete sample, its completing message received at wall time `received` (`update` must have
         completed one). A half of the next sample read since does not enter it."""
         a, p = self._pair
-        t = max(a.time_boot_ms, p.time_boot_ms) / 1000.0
+        t_attitude, t_position = a.time_boot_ms / 1000.0, p.time_boot_ms / 1000.0
+        t = max(t_attitude, t_position)
+        reported_v = np.array([p.vx, p.vy, p.vz], dtype=float)
+        rates = np.array([a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)
         eta = np.array([p.x, p.y, p.z, a.roll, a.pitch, a.yaw], dtype=float)
-        v_ned = self.blend.update(t, eta[:3], np.array([p.vx, p.vy, p.vz], dtype=float))
+        # the older half brought forward to the sample's time by its own rates (by half a period at most)
+        eta[:3] += reported_v * (t - t_position)
+        eta[3:] += euler_rate_matrix(eta) @ rates * (t - t_attitude)
+        v_ned = self.blend.update(t, eta[:3], reported_v)
         v_body = rotation(eta).T @ v_ned
         nu = np.array([*v_body, a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)
         return State(t, eta, nu, received)
