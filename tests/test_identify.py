@@ -107,7 +107,7 @@ def fly_in_process(log_dir: Path, noise=(0.0, 0.0, 0.0, 0.0), rate: float = 50.0
     model = load_vehicle()
     plant = Plant(vehicle, Environment(noise=np.array(noise, dtype=float)), eta0=mission.start_pose, seed=1)
     physics = Physics(vehicle, plant, Battery(), thruster_curve(vehicle), step)
-    controller = Controller(model, load_settings("fuzzy"))
+    controller = Controller(model, load_settings("fuzzy", "report"))   # identify flights fly the report's gains
     actuation = Actuation(model, mission.limits.max_thrust)
     dt = 1.0 / rate
     reference = mission.sampled_reference(dt)
@@ -399,8 +399,8 @@ def test_over_the_bridge(tmp_path, capsys):
     mission.write_text(SHORT_EXCITATION)
     log, out = tmp_path / "log", tmp_path / "identified.yaml"
     bridge = BridgeProcess(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.5", speedup=BRIDGE_SPEEDUP)
-    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--log", str(log),
-                       "--rerun", "off", "--heartbeat-timeout", "60") as run, bridge:
+    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--gains", "report", "--log",
+                       str(log), "--rerun", "off", "--heartbeat-timeout", "60") as run, bridge:
         assert run.wait() == 0, run.output
     code, stdout, stderr = identify_cli(capsys, log, "--net-buoyancy", repr(NET_BUOYANCY), "--out", out)
     print(stdout)
