@@ -12,18 +12,11 @@ from rov_mav.offline import noise
 
 
 @njit(cache=False)
-def _normals(seed, n):
+def _draws(seed, n, normal):
+    """n draws of the generator seeded by seed: normals, or uniforms."""
     out, rng = np.empty(n), np.uint64(seed)
     for k in range(n):
-        rng, out[k] = noise.normal(rng)
-    return out
-
-
-@njit(cache=False)
-def _uniforms(seed, n):
-    out, rng = np.empty(n), np.uint64(seed)
-    for k in range(n):
-        rng, out[k] = noise.uniform(rng)
+        rng, out[k] = noise.normal(rng) if normal else noise.uniform(rng)
     return out
 
 
@@ -39,7 +32,7 @@ def test_layers_have_equal_areas_and_close_at_the_peak():
 
 
 def test_normals_follow_the_normal_distribution_tails_included():
-    draws = _normals(11, 2_000_000)
+    draws = _draws(11, 2_000_000, True)
     assert stats.kstest(draws, "norm").pvalue > 1e-3
     assert abs(draws.mean()) < 4 / math.sqrt(draws.size)
     assert abs(draws.std() - 1.0) < 0.003
@@ -51,6 +44,6 @@ def test_normals_follow_the_normal_distribution_tails_included():
 
 
 def test_uniforms_cover_the_unit_interval_evenly():
-    draws = _uniforms(3, 500_000)
+    draws = _draws(3, 500_000, False)
     assert draws.min() >= 0.0 and draws.max() < 1.0
     assert stats.kstest(draws, "uniform").pvalue > 1e-3
