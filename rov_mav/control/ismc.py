@@ -15,8 +15,9 @@ controller receives). With e = eta - eta_d (angles wrapped) and the body-frame v
 On the model, s_dot = -M^-1 (K tanh(s/phi) + tau_d): the switching term rejects the matched disturbance tau_d and
 the integral removes the steady error. auv_controllers writes the surface's initial term as K_p nu_e(0); we use
 nu_e(0) so that s(0) = 0 (Utkin's integral sliding mode). Parameter vector: [K_pos (6) | K_p (6) | K (6) | phi (6)];
-state: integral of nu_e (6), nu_e(0) (6), started flag (1). tau_hat (logged) is -K tanh(s/phi), the disturbance
-the switching term cancels.
+state: integral of nu_e (6), nu_e(0) (6), started flag (1), 1/phi (6, set on the first tick: a multiplication
+per DOF and tick instead of a division). tau_hat (logged) is -K tanh(s/phi), the disturbance the switching term
+cancels.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ BOUNDS = {"k_pos": (0.1, 5.0),
           "kp": (0.1, 10.0),
           "k": ([0.5, 0.5, 0.5, 0.05, 0.05, 0.05], [100.0, 100.0, 100.0, 10.0, 10.0, 10.0]),
           "phi": (0.01, 1.0)}
-STATE_SIZE = 13
+STATE_SIZE = 19
 
 
 @compiled
@@ -56,8 +57,11 @@ def tanh(x):
 def step(m, params, eta, trig, nu, ref, dt, state, tau, tau_hat, s):
     """One tick: writes tau, tau_hat, s (6,) each; updates state."""
     k_pos, kp, k, phi = params[0:6], params[6:12], params[12:18], params[18:24]
-    integral, initial = state[0:6], state[6:12]
+    integral, initial, inverse_phi = state[0:6], state[6:12], state[13:19]
     started = state[12] != 0.0
+    if not started:
+        for i in range(6):
+            inverse_phi[i] = 1.0 / phi[i]
     cphi, sphi, cth, sth, R, eta_dot, A = state_kinematics(trig, nu)
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     target, accel = s, tau_hat   # scratch in the eta frame, consumed before s and tau_hat are written
@@ -86,6 +90,6 @@ def step(m, params, eta, trig, nu, ref, dt, state, tau, tau_hat, s):
         s[i] = error - initial[i] + kp[i] * integral[i]
         tau[i] = mass_row(m, i, a[0], a[1], a[2], a[3], a[4], a[5]) + c[i] + d[i] + g[i]
     for i in range(6):
-        tau_hat[i] = -k[i] * tanh(s[i] / phi[i])
+        tau_hat[i] = -k[i] * tanh(s[i] * inverse_phi[i])
         tau[i] -= tau_hat[i]
     state[12] = 1.0
