@@ -66,7 +66,9 @@ def make_bad_file(folder: Path, kind: str) -> Path:
         path.write_bytes(b"name: caf\xe9\n")
     elif kind == "bomb":
         path.write_text(billion_laughs())
-    elif kind == "deep":
+    elif kind == "deep":               # deeper than ours, within libyaml's own limit (1,000 since PyYAML 6.0.4)
+        path.write_text("path: " + "[" * 100 + "]" * 100 + "\n")
+    elif kind == "very_deep":          # a C parser recursing this deep would overflow its stack
         path.write_text("path: " + "[" * 100_000 + "]" * 100_000 + "\n")
     elif kind == "self_alias":
         path.write_text("path: &p [1, *p]\n")
@@ -92,6 +94,7 @@ BAD_FILES = {   # kind -> what the one line must say
     "latin1": "not a text YAML file (byte 0xe9 at offset 9 is not UTF-8)",
     "bomb": "more than 100,000 values once aliases are expanded",
     "deep": "nested more than 50 levels deep",
+    "very_deep": "nest",   # ours, or libyaml's "exceeded maximum nesting depth" (PyYAML >= 6.0.4) as it scans ahead
     "self_alias": "alias *p refers to the value that contains it",
     "list": "expected a mapping of keys at the top level",
     "long_integer": "Exceeds the limit (4300 digits) for integer string conversion",
@@ -443,3 +446,15 @@ def test_the_issue_cases_through_the_console_script(workdir):
         assert_one_line(proc.stderr, expected)
         assert proc.stdout == ""
     assert files_under(workdir) == set()
+
+
+@pytest.mark.parametrize("command", sorted(cli.SUBCOMMANDS))
+def test_every_help_page_renders_its_percent_signs(capsys, command):
+    """`--help` formats argument help with %-substitution but descriptions only when they name %(prog)s: a page must
+    show neither a doubled %% nor an unsubstituted %(...)s."""
+    with pytest.raises(SystemExit) as ended:
+        cli.main([command, "--help"])
+    assert ended.value.code == 0
+    page = capsys.readouterr().out
+    assert f"rov-mav {command}" in page
+    assert "%%" not in page and "%(" not in page

@@ -143,7 +143,7 @@ def main() -> None:
     print(f"\npyswarms GlobalBestPSO, objective = a loop over the particles (one core), {args.baseline_iterations} "
           f"iterations timed, extrapolated to {options.iterations}:")
     for label, objective in (("the compiled kernel, one call per particle", compiled_loop),
-                             ("rov_mav.simulation.simulate() per particle (recorded run)", simulate_loop)):
+                             ("rov_mav.offline.simulation.simulate() per particle (recorded run)", simulate_loop)):
         seconds, cpu_b = pyswarms_tune(objective, options, args.baseline_iterations, 0)
         full, full_cpu = (v * options.iterations / args.baseline_iterations for v in (seconds, cpu_b))
         print(f"  {label}: {full:.0f} s wall ({full_cpu:.0f} s CPU) -> ours {full / wall:.1f}x faster in wall time, "

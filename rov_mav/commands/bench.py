@@ -51,7 +51,7 @@ def budget(text: str) -> tuple[int, int]:
 def configure(p: argparse.ArgumentParser) -> None:
     p.description = ("Each controller is PSO-tuned with the same budget on the training scenarios of each mission, "
                      "then flown on the held-out scenarios (model error, currents, waves, DVL-level noise, 5-10 Hz "
-                     "delayed telemetry, thruster saturation) over N noise seeds. Writes bench.md (mean and 95 %% "
+                     "delayed telemetry, thruster saturation) over N noise seeds. Writes bench.md (mean and 95 % "
                      "Student-t interval per controller x mission x scenario group), bench.json, the tuned gains, "
                      "box plots and a Rerun recording per controller to --out.")
     p.add_argument("--controllers", type=controller_names, nargs="+", metavar="NAME",

@@ -44,6 +44,6 @@ def run_metrics(mission: str, controller: str, t: np.ndarray, eta: np.ndarray, e
 
 
 def trace_metrics(mission: str, controller: str, trace) -> dict:
-    """`run_metrics` of an offline run (a `rov_mav.simulation.Trace`)."""
+    """`run_metrics` of an offline run (a `rov_mav.offline.simulation.Trace`)."""
     return run_metrics(mission, controller, trace.t, trace.eta, trace.reference[:, :6], trace.tau, trace.tau_hat,
                        trace.true_disturbance, trace.completed)
