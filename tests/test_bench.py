@@ -63,6 +63,50 @@ def test_paired_difference_separates_what_per_controller_intervals_cannot():
     assert diff.mean == pytest.approx(-0.01) and diff.high == pytest.approx(-0.01)
 
 
+def test_with_several_tunes_the_unit_is_the_tune():
+    """Four tunes whose gains landed apart (means 5, 10, 6, 12 cm) and whose runs barely vary within a tune: the
+    figure is the mean of the tunes' means and its interval the t-interval over those four means, not the narrow
+    one over 40 runs as if they were independent; a tune whose runs all diverged counts as failures only. Paired
+    differences pair tune i with tune i and take their interval over the tunes."""
+    rng = np.random.default_rng(5)
+    means = {0: 0.05, 1: 0.10, 2: 0.06, 3: 0.12}
+
+    def run(kind, tune, i, rms, completed=True):
+        return bench.RunFigures(kind, "line", f"s{i // 2}", "g", i % 2, completed, rms, 0.0, 0.0, 0.0, 0.0, tune)
+    runs = [run("a", t, i, m + rng.normal(0, 0.001)) for t, m in means.items() for i in range(10)]
+    runs += [run("a", 4, i, 9.9, completed=False) for i in range(10)]
+    summary = next(s for s in bench.summarize(runs) if s.group == "g")
+    tune_means = [np.mean([r.rms_position_m for r in runs if r.tune == t]) for t in means]
+    expected = bench.mean_interval(tune_means)
+    got = summary.figures["rms_position_m"]
+    assert (got.mean, got.low, got.high) == pytest.approx((expected.mean, expected.low, expected.high), rel=1e-12)
+    assert (summary.runs, summary.failures) == (50, 10)
+    pooled = bench.mean_interval([r.rms_position_m for r in runs if r.completed])
+    assert got.high - got.low > 5 * (pooled.high - pooled.low)
+    runs += [run("b", t, i, r.rms_position_m + 0.01 * (t + 1)) for t in means
+             for i, r in enumerate(x for x in runs if x.tune == t)]
+    diff = bench.paired_difference(runs, "b", "a", "line", "g")
+    assert diff.mean == pytest.approx(0.025) and (diff.low, diff.high) == pytest.approx(
+        (bench.mean_interval([0.01, 0.02, 0.03, 0.04]).low, bench.mean_interval([0.01, 0.02, 0.03, 0.04]).high))
+
+
+def test_the_interval_over_tunes_covers_the_laws_mean_and_pooling_the_runs_does_not():
+    """A two-stage sample as the bench draws it: each tune lands with an offset N(0, 1 cm) from the law's mean, its
+    runs scatter N(0, 0.3 cm) around that. Over 2000 benches of 5 tunes x 8 runs, the interval over the tunes covers
+    the law's mean 95 % of the time; the interval over the 40 runs pooled, far less often."""
+    rng = np.random.default_rng(11)
+    covered = pooled_covered = 0
+    for _ in range(2000):
+        offsets = rng.normal(0.0, 1.0, 5)
+        values = {t: list(5.0 + offsets[t] + rng.normal(0.0, 0.3, 8)) for t in range(5)}
+        interval = bench.tune_interval(values)
+        pooled = bench.mean_interval([v for vs in values.values() for v in vs])
+        covered += interval.low <= 5.0 <= interval.high
+        pooled_covered += pooled.low <= 5.0 <= pooled.high
+    assert 0.93 <= covered / 2000 <= 0.97
+    assert pooled_covered / 2000 < 0.6
+
+
 def test_the_controller_sees_sampled_delayed_telemetry(vehicle, line):
     """10 Hz samples 0.15 s late: the runner's Controller fed, at each tick, the true state of the last sample that
     has arrived (tick 0's before any) reproduces the batched run's commands exactly; the delay changes the run."""
@@ -168,12 +212,39 @@ def test_tiny_bench_through_the_cli(tmp_path, capsys, vehicle, line):
         assert np.sqrt(np.mean(norms**2)) == pytest.approx(done[(len(done) - 1) // 2], rel=1e-9)
 
 
+def test_several_tunes_through_the_cli(tmp_path, capsys, line):
+    """--tunes 2: two tunes per controller (swarm seeds 0 and 1), each flown on every held-out run; seed 0's tune is
+    the one a single-tune bench makes; each summary is the mean of the tunes' means; bench.md shows each tune."""
+    one, two = tmp_path / "one", tmp_path / "two"
+    common = ["bench", "--controllers", "smc", "--missions", str(LINE), "--seeds", "1", "--tune-budget", "4x2"]
+    assert cli.main([*common, "--out", str(one)]) == 0
+    assert cli.main([*common, "--tunes", "2", "--out", str(two)]) == 0
+    capsys.readouterr()
+    single, double = json.loads((one / "bench.json").read_text()), json.loads((two / "bench.json").read_text())
+    assert [t["swarm_seed"] for t in double["tuned"]] == [0, 1]
+    assert double["tuned"][0]["gains"] == single["tuned"][0]["gains"] != double["tuned"][1]["gains"]
+    for seed in (0, 1):
+        written = load_settings("smc", two / "gains" / f"line-smc-seed{seed}.yaml")
+        assert written.as_yaml() == double["tuned"][seed]["gains"]
+    assert [r for r in double["runs"] if r["tune"] == 0] == single["runs"]
+    assert len(double["runs"]) == 2 * len(single["runs"])
+    for row in double["summary"]:
+        per_tune = [[r["rms_position_m"] for r in double["runs"] if r["tune"] == t and r["completed"]
+                     and row["group"] in ("all", r["group"])] for t in (0, 1)]
+        if all(per_tune):
+            assert row["rms_position_m"]["mean"] == pytest.approx(np.mean([np.mean(v) for v in per_tune]),
+                                                                  rel=1e-12)
+    table = (two / "bench.md").read_text()
+    assert "2 independent tunes, swarm seeds 0-1" in table and "| line | smc | " in table.split("## Each tune")[1]
+
+
 @pytest.mark.parametrize("argv,fragments", [
     (["--controllers", "pid,lqr"], ["argument --controllers: 'lqr': unknown controller"]),
     (["--missions", "nowhere.yaml"], ["nowhere.yaml", "no such file"]),
     (["--tune-budget", "30"], ["argument --tune-budget: 30: expected PARTICLESxITERATIONS"]),
     (["--tune-budget", "0x5"], ["argument --tune-budget: 0x5: particles from 1"]),
     (["--seeds", "0"], ["argument --seeds: 0"]),
+    (["--tunes", "0"], ["argument --tunes: 0"]),
     (["--scenarios", "missing.yaml"], ["missing.yaml", "no such file"]),
     (["--scenarios", "{bad}"], ["plant_scale"]),
     (["--training", "{bad}"], ["plant_scale"]),

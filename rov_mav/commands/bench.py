@@ -1,8 +1,9 @@
 """`rov-mav bench`: which controller tracks best, where, and how sure we are (the procedure: `rov_mav.offline.bench`).
 
 Writes to --out: bench.md (the table), bench.json (every figure), gains/MISSION-CONTROLLER.yaml (the tuned gains,
-`simulate --gains` takes them), errors-MISSION.png (box plots per controller) and rerun/CONTROLLER.rrd (one
-representative held-out run per controller, in the telemetry layout)."""
+`simulate --gains` takes them; MISSION-CONTROLLER-seedS.yaml per swarm seed with --tunes above 1),
+errors-MISSION.png (box plots per controller) and rerun/CONTROLLER.rrd (one representative held-out run per
+controller, in the telemetry layout)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ DEFAULT_BUDGET = (30, 20)
 MAX_PARTICLES = 10_000
 MAX_ITERATIONS = 100_000
 MAX_SEEDS = 1000
+MAX_TUNES = 100
 MAX_THREADS = 256
 BENCH_KINDS = tuple(KINDS)   # every controller with a law of ours (ardusub-guided flies only in `run`)
 
@@ -53,7 +55,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                      "then flown on the held-out scenarios (model error, currents, waves, DVL-level noise, 5-10 Hz "
                      "delayed telemetry, thruster saturation) over N noise seeds. Writes bench.md (mean and 95 % "
                      "Student-t interval per controller x mission x scenario group), bench.json, the tuned gains, "
-                     "box plots and a Rerun recording per controller to --out.")
+                     "box plots and a Rerun recording per controller to --out. With --tunes K each controller is "
+                     "tuned K times (swarm seeds 0..K-1) and the intervals are over the tunes, so they hold the luck "
+                     "of the tune as well as the noise's.")
     p.add_argument("--controllers", type=controller_names, nargs="+", metavar="NAME",
                    help=f"controllers to compare, space- or comma-separated (default: all: {', '.join(BENCH_KINDS)})")
     p.add_argument("--missions", nargs="+", metavar="FILE",
@@ -64,6 +68,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help=f"training scenarios the controllers are tuned on (default {DEFAULT_TRAINING})")
     p.add_argument("--seeds", type=count(MAX_SEEDS), default=5,
                    help="noise seeds per held-out scenario (default 5)")
+    p.add_argument("--tunes", type=count(MAX_TUNES), default=1, metavar="K",
+                   help="independent tunes per controller and mission, swarm seeds 0..K-1, each flown on every "
+                        "held-out run; with K > 1 each figure is the mean of the tunes' means and its interval is "
+                        "over the tunes (default 1: one tune, intervals over the noise seeds)")
     p.add_argument("--tune-budget", type=budget, default=DEFAULT_BUDGET, metavar="PxI",
                    help="PSO particles x iterations per controller and mission, the same for all (default "
                         f"{DEFAULT_BUDGET[0]}x{DEFAULT_BUDGET[1]})")
@@ -99,8 +107,9 @@ def main(args: argparse.Namespace) -> int:
     particles, iterations = args.tune_budget
     options = pso.PSOOptions(particles, iterations)
     compute = args.cluster or f"{args.threads} threads"
-    runs = sum(len(held_out[m.name]) for m in missions) * args.seeds * len(controllers)
-    print(f"bench: {', '.join(controllers)} on {', '.join(names)}: tuning {particles}x{iterations} over "
+    runs = sum(len(held_out[m.name]) for m in missions) * args.seeds * len(controllers) * args.tunes
+    tunes = "" if args.tunes == 1 else f" {args.tunes} times (swarm seeds 0-{args.tunes - 1})"
+    print(f"bench: {', '.join(controllers)} on {', '.join(names)}: tuning {particles}x{iterations}{tunes} over "
           f"{len(training[names[0]])} training scenarios, then {runs} held-out runs ({args.seeds} seeds), {compute}")
 
     if args.cluster:
@@ -108,14 +117,16 @@ def main(args: argparse.Namespace) -> int:
         backend = DaskBackend(args.cluster)
     else:
         backend = tuning.ThreadBackend(args.threads)
-    total = bench.work(missions, controllers, training, held_out, args.seeds, options)
+    total = bench.work(missions, controllers, training, held_out, args.seeds, options, args.tunes)
     with backend, tqdm(total=total, desc="bench", unit="tick", unit_scale=True, file=sys.stderr) as bar:
         result = bench.run_bench(missions, controllers, model, training, held_out, args.seeds, options, backend,
-                                 args.threads, bar.update)
+                                 args.threads, bar.update, args.tunes)
+    interval = "" if args.tunes == 1 else f", over the {args.tunes} tunes"
     settings = {"controllers": controllers, "missions": names, "training": args.training, "held_out": args.scenarios,
-                "seeds": args.seeds, "particles": particles, "iterations": iterations, "pso_seed": bench.PSO_SEED,
-                "interval": f"Student-t {bench.LEVEL:.0%} interval of the mean", "voltage_v": bench.VOLTAGE,
-                "compute": compute}
+                "seeds": args.seeds, "particles": particles, "iterations": iterations, "tunes": args.tunes,
+                "swarm_seeds": list(bench.swarm_seeds(args.tunes)),
+                "interval": f"Student-t {bench.LEVEL:.0%} interval of the mean{interval}",
+                "voltage_v": bench.VOLTAGE, "compute": compute}
     _write(out, result, settings, missions, model, held_out)
     return 0
 
@@ -130,8 +141,10 @@ def _write(out: Path, result, settings: dict, missions, model, held_out) -> None
     (out / "bench.json").write_text(json.dumps(bench.result_document(result, settings), indent=1) + "\n")
     (out / "bench.md").write_text(markdown(result, settings))
     for t in result.tuned:
-        write_gains(out / "gains" / f"{t.mission}-{t.settings.kind}.yaml", t.settings,
-                    f"rov-mav bench: {t.settings.kind} tuned on {t.mission}, training cost {t.training_cost!r}")
+        name = f"{t.mission}-{t.settings.kind}" + ("" if settings["tunes"] == 1 else f"-seed{t.swarm_seed}")
+        write_gains(out / "gains" / f"{name}.yaml", t.settings,
+                    f"rov-mav bench: {t.settings.kind} tuned on {t.mission} (swarm seed {t.swarm_seed}), "
+                    f"training cost {t.training_cost!r}")
     figures = []
     for m in missions:
         done = [r for r in result.runs if r.mission == m.name and r.completed]
@@ -156,23 +169,24 @@ def _write(out: Path, result, settings: dict, missions, model, held_out) -> None
 
 
 def _record(folder: Path, result, mission, model, held_out) -> list[Path]:
-    """One Rerun recording per controller: its median held-out run on the first mission."""
+    """One Rerun recording per controller: its median held-out run on the first mission (over every tune)."""
     from rov_mav import telemetry
     from rov_mav.offline import bench
 
     scenarios = {s.name: s for s in held_out}
+    tuned = {(t.settings.kind, t.swarm_seed): t for t in result.tuned if t.mission == mission.name}
     paths = []
-    for tuned in (t for t in result.tuned if t.mission == mission.name):
-        run = bench.representative(result.runs, tuned.settings.kind, mission.name)
+    for kind in dict.fromkeys(kind for kind, _ in tuned):
+        run = bench.representative(result.runs, kind, mission.name)
         if run is None:
             continue
-        trace, _ = bench.replay(mission, tuned.settings, model, scenarios[run.scenario], run.seed)
-        path = folder / f"{tuned.settings.kind}.rrd"
+        trace, _ = bench.replay(mission, tuned[kind, run.tune].settings, model, scenarios[run.scenario], run.seed)
+        path = folder / f"{kind}.rrd"
         rec = telemetry.open_recording(telemetry.RerunTarget("save", str(path)),
                                        telemetry.default_blueprint(trace.reference[:, :3]))
-        telemetry.log_trace(rec, trace, model, [(0.0, f"{tuned.settings.kind} on {mission.name}: held-out "
-                                                      f"{run.scenario}, seed {run.seed} (median RMS position "
-                                                      "error)", "INFO")] + telemetry.mission_events(mission, trace))
+        telemetry.log_trace(rec, trace, model, [(0.0, f"{kind} on {mission.name}: held-out {run.scenario}, seed "
+                                                      f"{run.seed}, tune {run.tune} (median RMS position error)",
+                                                 "INFO")] + telemetry.mission_events(mission, trace))
         telemetry.finish(rec)
         paths.append(path)
     return paths

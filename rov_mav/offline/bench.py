@@ -1,8 +1,9 @@
 """The bench: controllers tuned alike on training scenarios, then judged on held-out ones over seeds, with intervals.
 
-Procedure (`run_bench`): for each mission and controller, PSO (`tuning.tune`, the same budget, swarm seed, cost
+Procedure (`run_bench`): for each mission and controller, PSO (`tuning.tune`, the same budget, swarm seeds, cost
 and bounds rules for all: the family's default box, the tracking cost, the mean over the training scenarios) from the
-controller's shipped non-tuned parameters; then every held-out scenario x seed is flown with the tuned gains by the
+controller's shipped non-tuned parameters, once per swarm seed 0..tunes-1 (independent tunes: where the swarm lands
+is itself a draw); then every held-out scenario x seed is flown with each tune's gains by the
 same `simulate` any user can call (`replay`), the plant clipping the commanded wrench per axis to the capacity of its
 thrusters (`tuning.wrench_capacity` at the scenario's or the mission's max thrust). Per run (`run_figures`): RMS and
 max position error, RMS attitude error, electrical energy (the wrench the plant received, allocated to the thrusters
@@ -10,7 +11,10 @@ by the pseudo-inverse, each thrust to its current by the T200 data at VOLTAGE), 
 saturated command, and whether the run diverged. Per controller x mission x scenario group (and all groups): the
 mean of each figure over the completed runs with a Student-t 95 % interval (`mean_interval`), and the failures;
 between two controllers, the t-interval of their paired difference over the same scenarios and seeds
-(`paired_difference`).
+(`paired_difference`). With several tunes the unit of replication is the tune (a two-stage sample: the runs of one
+tune share its gains, so they are not independent draws of how the law does once tuned): a figure is the mean of
+the tunes' means with its interval over those means (`tune_interval`), and a paired difference is each tune's mean
+difference, its interval over the tunes.
 """
 
 from __future__ import annotations
@@ -35,24 +39,26 @@ from rov_mav.offline.simulation import CONTROL_DT, Trace, simulate
 
 VOLTAGE = 16.0          # V: a charged 4S pack, the runner's default before the vehicle reports one
 LEVEL = 0.95            # the intervals' confidence
-PSO_SEED = 0            # the same swarm seed for every controller
+FIRST_SWARM_SEED = 0    # the tunes' swarm seeds are 0, 1, ... for every controller alike
 FIGURES = ("rms_position_m", "max_position_m", "rms_attitude_rad", "energy_wh", "saturation_fraction")
 ALL_GROUPS = "all"
 
 
 @dataclass(frozen=True)
 class Tuned:
-    """A controller tuned for a mission: its settings, the training objective reached, the time it took."""
+    """A controller tuned for a mission with one swarm seed: its settings, the training objective reached, the time it
+    took."""
 
     mission: str
     settings: ControllerSettings
     training_cost: float
     elapsed_s: float
+    swarm_seed: int = FIRST_SWARM_SEED
 
 
 @dataclass(frozen=True)
 class RunFigures:
-    """One held-out run's figures (`FIGURES`) and where it came from."""
+    """One held-out run's figures (`FIGURES`) and where it came from (`tune`: the swarm seed of the gains flown)."""
 
     controller: str
     mission: str
@@ -65,6 +71,7 @@ class RunFigures:
     rms_attitude_rad: float
     energy_wh: float
     saturation_fraction: float
+    tune: int = FIRST_SWARM_SEED
 
 
 @dataclass(frozen=True)
@@ -99,17 +106,31 @@ def mean_interval(values: Sequence[float], level: float = LEVEL) -> Interval:
     return Interval(mean, mean - half, mean + half)
 
 
+def tune_interval(values_by_tune: dict[int, list[float]], level: float = LEVEL) -> Interval:
+    """A two-stage sample's mean and interval: over the values as they are for one tune, else the mean of each tune's
+    mean and the Student-t interval over those means (tunes with no value left out)."""
+    filled = [values for values in values_by_tune.values() if values]
+    if len(values_by_tune) <= 1:
+        return mean_interval([v for values in filled for v in values], level)
+    return mean_interval([float(np.mean(values)) for values in filled], level)
+
+
 def paired_difference(runs: Sequence[RunFigures], a: str, b: str, mission: str, group: str,
                       figure: str = "rms_position_m") -> Interval:
     """Mean and t-interval of `figure` of controller a minus b over the runs both completed on the same scenario and
     seed (the seeds are shared, so this separates controllers that per-controller intervals cannot); `group`
-    ALL_GROUPS pairs every group."""
-    def by_run(kind: str) -> dict[tuple[str, int], float]:
-        return {(r.scenario, r.seed): getattr(r, figure) for r in runs
+    ALL_GROUPS pairs every group. With several tunes, tune i of a is paired with tune i of b (independent draws
+    both) and the interval is over the tunes' mean differences (`tune_interval`)."""
+    def by_run(kind: str) -> dict[tuple[int, str, int], float]:
+        return {(r.tune, r.scenario, r.seed): getattr(r, figure) for r in runs
                 if r.controller == kind and r.mission == mission and r.completed
                 and group in (ALL_GROUPS, r.group)}
     first, second = by_run(a), by_run(b)
-    return mean_interval([first[key] - second[key] for key in first.keys() & second.keys()])
+    tunes = {r.tune for r in runs if r.mission == mission and r.controller in (a, b)}
+    differences: dict[int, list[float]] = {tune: [] for tune in tunes}
+    for key in first.keys() & second.keys():
+        differences[key[0]].append(first[key] - second[key])
+    return tune_interval(differences)
 
 
 def max_thrust(mission: Mission, scenario: Scenario) -> float:
@@ -152,24 +173,31 @@ def replay(mission: Mission, settings: ControllerSettings, model: Vehicle, scena
     return trace, capacity
 
 
-def evaluate(mission: Mission, settings: ControllerSettings, model: Vehicle, scenario: Scenario, seed: int
-             ) -> RunFigures:
+def evaluate(mission: Mission, settings: ControllerSettings, model: Vehicle, scenario: Scenario, seed: int,
+             tune: int = FIRST_SWARM_SEED) -> RunFigures:
     """One held-out run's figures."""
     trace, capacity = replay(mission, settings, model, scenario, seed)
     figures = run_figures(trace, model, capacity, max_thrust(mission, scenario))
-    return RunFigures(settings.kind, mission.name, scenario.name, scenario.group, seed, **figures)
+    return RunFigures(settings.kind, mission.name, scenario.name, scenario.group, seed, **figures, tune=tune)
 
 
 def tune_controller(mission: Mission, kind: str, model: Vehicle, training: Sequence[Scenario],
                     options: pso.PSOOptions, backend: tuning.Backend,
-                    callback: Callable[[int, float], None] | None = None) -> Tuned:
+                    callback: Callable[[int, float], None] | None = None,
+                    swarm_seed: int = FIRST_SWARM_SEED) -> Tuned:
     """PSO of `kind`'s tuned gains on the mission over the training scenarios (the bench's common rules)."""
     start = load_settings(kind)
     problem = tuning.build_problem(mission, start, model, training)
     lower, upper = start.family.default_bounds()
     t0 = time.perf_counter()
-    result = tuning.tune(problem, lower, upper, options, PSO_SEED, backend, callback)
-    return Tuned(mission.name, start.with_gains(result.best_position), result.best_cost, time.perf_counter() - t0)
+    result = tuning.tune(problem, lower, upper, options, swarm_seed, backend, callback)
+    return Tuned(mission.name, start.with_gains(result.best_position), result.best_cost, time.perf_counter() - t0,
+                 swarm_seed)
+
+
+def swarm_seeds(tunes: int) -> range:
+    """The swarm seeds of `tunes` independent tunes."""
+    return range(FIRST_SWARM_SEED, FIRST_SWARM_SEED + tunes)
 
 
 def held_out_runs(held_out: Sequence[Scenario], seeds: int) -> list[tuple[Scenario, int]]:
@@ -178,16 +206,23 @@ def held_out_runs(held_out: Sequence[Scenario], seeds: int) -> list[tuple[Scenar
 
 
 def summarize(runs: Sequence[RunFigures]) -> list[Summary]:
-    """Per controller x mission x group, then x all groups, in the order the runs came."""
+    """Per controller x mission x group, then x all groups, in the order the runs came; each figure over the
+    completed runs (`tune_interval`: by tune when there are several)."""
     keys: dict[tuple[str, str, str], list[RunFigures]] = {}
     for run in runs:
         keys.setdefault((run.controller, run.mission, run.group), []).append(run)
         keys.setdefault((run.controller, run.mission, ALL_GROUPS), []).append(run)
     out = []
     for (controller, mission, group), members in keys.items():
-        done = [r for r in members if r.completed]
-        out.append(Summary(controller, mission, group, len(members), len(members) - len(done),
-                           {f: mean_interval([getattr(r, f) for r in done]) for f in FIGURES}))
+        failures = sum(not r.completed for r in members)
+        figures = {}
+        for f in FIGURES:
+            by_tune: dict[int, list[float]] = {r.tune: [] for r in members}
+            for r in members:
+                if r.completed:
+                    by_tune[r.tune].append(getattr(r, f))
+            figures[f] = tune_interval(by_tune)
+        out.append(Summary(controller, mission, group, len(members), failures, figures))
     return out
 
 
@@ -204,10 +239,10 @@ def _ticks(mission: Mission) -> int:
 
 
 def work(missions: Sequence[Mission], controllers: Sequence[str], training: dict[str, list[Scenario]],
-         held_out: dict[str, list[Scenario]], seeds: int, options: pso.PSOOptions) -> int:
-    """Simulated ticks the bench will run (PSO iterations x particles x training scenarios, plus the held-out runs):
-    the unit of its progress."""
-    return sum(len(controllers) * _ticks(m)
+         held_out: dict[str, list[Scenario]], seeds: int, options: pso.PSOOptions, tunes: int = 1) -> int:
+    """Simulated ticks the bench will run (PSO iterations x particles x training scenarios, plus the held-out runs,
+    per tune): the unit of its progress."""
+    return sum(tunes * len(controllers) * _ticks(m)
                * (options.iterations * options.particles * len(training[m.name]) + seeds * len(held_out[m.name]))
                for m in missions)
 
@@ -215,23 +250,25 @@ def work(missions: Sequence[Mission], controllers: Sequence[str], training: dict
 def run_bench(missions: Sequence[Mission], controllers: Sequence[str], model: Vehicle,
               training: dict[str, list[Scenario]], held_out: dict[str, list[Scenario]], seeds: int,
               options: pso.PSOOptions, backend: tuning.Backend, threads: int,
-              progress: Callable[[int], None] = lambda n: None) -> BenchResult:
-    """The whole bench; training and held-out scenarios per mission name. `progress(n)` after every PSO iteration
-    and every held-out run with the ticks they simulated (`work` in all)."""
+              progress: Callable[[int], None] = lambda n: None, tunes: int = 1) -> BenchResult:
+    """The whole bench; training and held-out scenarios per mission name; `tunes` independent tunes per controller
+    and mission. `progress(n)` after every PSO iteration and every held-out run with the ticks they simulated
+    (`work` in all)."""
     t0 = time.perf_counter()
     tuned = []
     for m in missions:
         iteration = _ticks(m) * options.particles * len(training[m.name])
         tuned += [tune_controller(m, kind, model, training[m.name], options, backend,
-                                  lambda it, best, n=iteration: progress(n)) for kind in controllers]
+                                  lambda it, best, n=iteration: progress(n), swarm_seed)
+                  for kind in controllers for swarm_seed in swarm_seeds(tunes)]
     t1 = time.perf_counter()
     by_name = {m.name: m for m in missions}
-    jobs = [(by_name[t.mission], t.settings, scenario, seed)
+    jobs = [(by_name[t.mission], t, scenario, seed)
             for t in tuned for scenario, seed in held_out_runs(held_out[t.mission], seeds)]
 
     def job(args) -> RunFigures:
-        mission, settings, scenario, seed = args
-        figures = evaluate(mission, settings, model, scenario, seed)
+        mission, tune, scenario, seed = args
+        figures = evaluate(mission, tune.settings, model, scenario, seed, tune.swarm_seed)
         progress(_ticks(mission))
         return figures
 
@@ -247,8 +284,9 @@ def result_document(result: BenchResult, settings: dict) -> dict:
     return {
         "settings": settings,
         "timing": result.timing,
-        "tuned": [{"mission": t.mission, "controller": t.settings.kind, "training_cost": t.training_cost,
-                   "tune_s": t.elapsed_s, "gains": t.settings.as_yaml()} for t in result.tuned],
+        "tuned": [{"mission": t.mission, "controller": t.settings.kind, "swarm_seed": t.swarm_seed,
+                   "training_cost": t.training_cost, "tune_s": t.elapsed_s, "gains": t.settings.as_yaml()}
+                  for t in result.tuned],
         "runs": [asdict(r) for r in result.runs],
         "summary": [{"controller": s.controller, "mission": s.mission, "group": s.group, "runs": s.runs,
                      "failures": s.failures, **{f: asdict(i) for f, i in s.figures.items()}}

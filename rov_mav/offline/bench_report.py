@@ -1,11 +1,13 @@
-"""The bench's Markdown: one table per mission (controller x scenario group), then who leads where."""
+"""The bench's Markdown: one table per mission (controller x scenario group), then who leads where, and with several
+tunes how each tune did."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 
-from rov_mav.offline.bench import ALL_GROUPS, BenchResult, Interval, RunFigures, Summary, paired_difference
+from rov_mav.offline.bench import (ALL_GROUPS, BenchResult, Interval, RunFigures, Summary, mean_interval,
+                                   paired_difference)
 
 # (figure, column title, scale to the shown unit)
 COLUMNS = (("rms_position_m", "RMS position error (cm)", 100.0),
@@ -46,19 +48,37 @@ def leader(summaries: Sequence[Summary], runs: Sequence[RunFigures], mission: st
     return best, clear
 
 
+def tune_rows(runs: Sequence[RunFigures], mission: str, controllers: Sequence[str]) -> list[str]:
+    """Per controller, each tune's mean RMS position error over all groups (cm) and its failures."""
+    rows = []
+    for controller in controllers:
+        cells = []
+        for tune in sorted({r.tune for r in runs if r.mission == mission and r.controller == controller}):
+            own = [r for r in runs if r.mission == mission and r.controller == controller and r.tune == tune]
+            done = [r.rms_position_m for r in own if r.completed]
+            mean = mean_interval(done).mean * 100.0
+            cells.append(("-" if math.isnan(mean) else f"{mean:.3g}") + f" ({len(own) - len(done)}/{len(own)})")
+        rows.append(f"| {mission} | {controller} | " + " | ".join(cells) + " |")
+    return rows
+
+
 def markdown(result: BenchResult, settings: dict) -> str:
-    """bench.md: how it was run, a table per mission, and the leader per scenario group."""
+    """bench.md: how it was run, a table per mission, the leader per scenario group, and each tune's result."""
     s = settings
+    seeds = s["swarm_seeds"]
+    tuned = (f"swarm seed {seeds[0]}" if len(seeds) == 1 else
+             f"{len(seeds)} independent tunes, swarm seeds {seeds[0]}-{seeds[-1]}")
+    cells = ("mean over the completed runs" if len(seeds) == 1 else
+             "mean of the tunes' means over their completed runs")
     lines = [
         "# rov-mav bench",
         "",
         f"Controllers {', '.join(s['controllers'])}; each PSO-tuned ({s['particles']} particles x {s['iterations']} "
-        f"iterations, swarm seed {s['pso_seed']}, tracking cost, mean over the training scenarios of "
-        f"`{s['training']}`) per mission, then flown on the held-out scenarios of `{s['held_out']}` with "
-        f"{s['seeds']} noise seeds each. Cells: mean over the completed runs [{s['interval']}]; failures: runs that "
-        f"diverged. Energy: electrical, T200 data at {s['voltage_v']:g} V. Wall time {result.timing['total_s']:.0f} s "
-        f"(tuning {result.timing['tune_s']:.0f} s, held-out runs {result.timing['evaluate_s']:.0f} s) with "
-        f"{s['compute']}.",
+        f"iterations, {tuned}, tracking cost, mean over the training scenarios of `{s['training']}`) per mission, "
+        f"then flown on the held-out scenarios of `{s['held_out']}` with {s['seeds']} noise seeds each. Cells: "
+        f"{cells} [{s['interval']}]; failures: runs that diverged. Energy: electrical, T200 data at "
+        f"{s['voltage_v']:g} V. Wall time {result.timing['total_s']:.0f} s (tuning {result.timing['tune_s']:.0f} s, "
+        f"held-out runs {result.timing['evaluate_s']:.0f} s) with {s['compute']}.",
     ]
     missions = list(dict.fromkeys(x.mission for x in result.summaries))
     for mission in missions:
@@ -73,7 +93,8 @@ def markdown(result: BenchResult, settings: dict) -> str:
     lines += ["", f"## {LEADERS_TITLE}", "",
               "Fewest failures first, then the lowest mean RMS position error; *clear*: every other controller failed "
               "more often, or the 95 % t-interval of the paired difference (leader minus it, over the scenarios and "
-              "seeds both completed) lies wholly below zero.",
+              "seeds both completed" + ("" if len(seeds) == 1 else "; over the tunes' mean differences, tune i "
+                                        "against tune i") + ") lies wholly below zero.",
               "", "| mission | group | controller | failures | RMS position error (cm) | lead |",
               "|---|---|---|---:|---:|---|"]
     for mission in missions:
@@ -85,4 +106,12 @@ def markdown(result: BenchResult, settings: dict) -> str:
             best, clear = lead
             lines.append(f"| {mission} | {group} | {best.controller} | {best.failures}/{best.runs} | "
                          f"{_cell(best.figures['rms_position_m'], 100.0)} | {'clear' if clear else 'overlapping'} |")
+    if len(seeds) > 1:
+        lines += ["", "## Each tune", "",
+                  "Mean RMS position error (cm) over all groups of each tune's completed runs, (failures/runs): how "
+                  "much where the swarm landed decides.", "",
+                  "| mission | controller | " + " | ".join(f"seed {seed}" for seed in seeds) + " |",
+                  "|---|---|" + "---:|" * len(seeds)]
+        for mission in missions:
+            lines += tune_rows(result.runs, mission, s["controllers"])
     return "\n".join(lines) + "\n"
