@@ -4,6 +4,7 @@ a tiny bench end to end through the CLI, and its one-line refusals."""
 from __future__ import annotations
 
 import json
+import subprocess
 
 import numpy as np
 import pyarrow as pa
@@ -11,6 +12,7 @@ import pytest
 from conftest import MISSIONS
 from rerun.chunk import RrdReader
 from test_bad_input import assert_one_line, files_under, rov_mav
+from test_bridge_gcs import ROV_MAV
 
 from rov_mav import cli
 from rov_mav.control.controller import Controller, load_settings
@@ -236,6 +238,17 @@ def test_several_tunes_through_the_cli(tmp_path, capsys, line):
                                                                   rel=1e-12)
     table = (two / "bench.md").read_text()
     assert "2 independent tunes, swarm seeds 0-1" in table and "| line | smc | " in table.split("## Each tune")[1]
+
+
+def test_into_a_log_the_progress_bar_writes_seldom(tmp_path):
+    """stderr a pipe (a CI log, `2> file`): the bar starts and ends, and in between updates every 30 s at most,
+    not every 0.1 s as on a terminal (a 6-minute bench wrote 1,000 updates into a log before)."""
+    done = subprocess.run([ROV_MAV, "bench", "--controllers", "smc", "--missions", str(LINE), "--seeds", "1",
+                           "--tune-budget", "4x3", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    updates = [u for u in done.stderr.replace("\r", "\n").splitlines() if u.startswith("bench:") and "tick" in u]
+    assert 2 <= len(updates) <= 3 and "100%" in updates[-1], done.stderr
 
 
 @pytest.mark.parametrize("argv,fragments", [

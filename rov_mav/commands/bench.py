@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import sys
 from pathlib import Path
 
 from rov_mav.commands.arguments import cluster_address, count, output_folder, require_writable
@@ -87,8 +86,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
+    from rov_mav.commands.common import progress_bar
     from rov_mav.config import ConfigError
     from rov_mav.mission.loader import load
     from rov_mav.model.vehicle import load_vehicle
@@ -118,7 +116,7 @@ def main(args: argparse.Namespace) -> int:
     else:
         backend = tuning.ThreadBackend(args.threads)
     total = bench.work(missions, controllers, training, held_out, args.seeds, options, args.tunes)
-    with backend, tqdm(total=total, desc="bench", unit="tick", unit_scale=True, file=sys.stderr) as bar:
+    with backend, progress_bar(total=total, desc="bench", unit="tick", unit_scale=True) as bar:
         result = bench.run_bench(missions, controllers, model, training, held_out, args.seeds, options, backend,
                                  args.threads, bar.update, args.tunes)
     interval = "" if args.tunes == 1 else f", over the {args.tunes} tunes"

@@ -28,6 +28,14 @@ MISSION_HELP = ("mission file: our YAML (e.g. missions/square.yaml), a QGroundCo
 
 
 RUN_ONLY = ("ardusub-guided",)      # no law of ours: `run` streams the reference to the vehicle's controller
+LOG_PROGRESS_INTERVAL_S = 30.0      # a progress bar written to a file or a pipe (a CI log) updates this seldom
+
+
+def progress_bar(**options):
+    """A tqdm bar on stderr: live on a terminal, a line every LOG_PROGRESS_INTERVAL_S into a log."""
+    from tqdm import tqdm
+
+    return tqdm(file=sys.stderr, mininterval=0.1 if sys.stderr.isatty() else LOG_PROGRESS_INTERVAL_S, **options)
 
 def add_plan_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("QGroundControl plans and vehicle missions")

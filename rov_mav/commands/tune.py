@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from tqdm import tqdm
 
 from rov_mav.commands.arguments import (
     cluster_address,
@@ -31,6 +30,7 @@ from rov_mav.commands.common import (
     check_rerun_output,
     controller_settings,
     load_mission,
+    progress_bar,
     rerun_recording,
 )
 from rov_mav.control.controller import ControllerSettings
@@ -149,7 +149,7 @@ def main(args: argparse.Namespace) -> int:
           f"{len(scenarios)} scenario(s), {problem.ref.shape[0] - 1} ticks each, cost '{args.cost}', "
           f"{args.cluster or f'{args.threads} threads'}")
     t0 = time.perf_counter()
-    with backend, tqdm(total=options.iterations, desc="tune", unit="it") as bar:
+    with backend, progress_bar(total=options.iterations, desc="tune", unit="it") as bar:
         def progress(iteration: int, best: float) -> None:
             bar.set_postfix(best=f"{best:.5g}", refresh=False)
             bar.update(1)
