@@ -24,6 +24,12 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 - GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
   from the GCS sysid, while armed: warn (1), disarm (2), hold (3: POSHOLD) or surface (4: SURFACE, refused here, so
   disarm as ArduSub does when that mode change fails).
+- Motor test (MAV_CMD_DO_MOTOR_TEST, ArduSub/motors.cpp `handle_do_motor_test`, `init_motor_test`,
+  `verify_motor_test`; AP_MotorsMatrix `output_test_num`): from any sysid; needs the vehicle armed, no failed start
+  in the last 2 s (nor in the first 2 s after boot) and no timeout in the last 10 s; test type BOARD (2) only; param1
+  is the 0-based motor index, the PWM raw (no MOT_n_DIRECTION, no MOT_PWM_MIN..MAX). While it runs the motors show
+  only the test PWMs (1500 until commanded) instead of the mixer; 0.5 s without a command ends it and disarms. A
+  disarm does not end it.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import numpy as np
 
 from sim_bridge import joystick, mixer
 from sim_bridge.guided import Guided
+from sim_bridge.numeric import f32, float_to_int, is_equal
 from sim_bridge.params import Params
 from sim_bridge.rc import RCInput
 from sim_bridge.stabilize import ASSISTED, Holds
@@ -44,7 +51,7 @@ GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "
 
 MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
 MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 3, 4, 5
-MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING = 2, 4
+MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING, MAV_SEVERITY_INFO = 2, 4, 6
 FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 2, 3, 4        # 1: warn only
 FS_PILOT_DISARM = 2
 GCS_CHECK_PERIOD = 0.3          # s: ArduSub's 3.3 Hz loop
@@ -59,6 +66,11 @@ _MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, 9)]
 _SERVO_FUNCTION = [f"SERVO{n}_FUNCTION" for n in range(1, SERVOS + 1)]
 _NEUTRAL = np.full(8, 1500, dtype=np.int32)
 UINT16_MAX = 65535
+MOTOR_TEST_THROTTLE_PERCENT, MOTOR_TEST_THROTTLE_PWM, MOTOR_TEST_THROTTLE_PILOT = 0, 1, 2
+MOTOR_TEST_ORDER_BOARD = 2
+MOTOR_TEST_TIMEOUT = 0.5        # s without a DO_MOTOR_TEST that ends the test
+MOTOR_TEST_RETRY = 2.0          # s after a failed start (and after boot) before the next start is tried
+MOTOR_TEST_COOLDOWN = 10.0      # s after a timeout before a new test may start
 
 
 class ArduSub:
@@ -87,6 +99,11 @@ class ArduSub:
         self.guided = Guided()
         self._state: tuple[np.ndarray, np.ndarray] | None = None   # the last estimate `update` was given
         self._held: np.ndarray | None = None          # motor PWM from the assisted modes' holds, this pass
+        self.motor_testing = False
+        self._test_pwm = _NEUTRAL
+        self._test_seen = t                           # the last DO_MOTOR_TEST
+        self._test_start_failed = t                   # ArduSub's static starts at 0: boot
+        self._test_timed_out: float | None = None
         self._t = t
 
     # -- inputs ----------------------------------------------------------------------------------------------
@@ -142,6 +159,59 @@ class ArduSub:
         self.mode = custom_mode
         return True
 
+    def motor_test(self, motor: float, throttle_type: float, throttle: float, test_type: int, t: float) -> int:
+        """MAV_CMD_DO_MOTOR_TEST as a COMMAND_INT (`Sub::handle_do_motor_test`): param1 the motor's 0-based index,
+        param2 the throttle type, param3 the throttle, y the test type; MAV_RESULT. Cast as ArduSub casts them."""
+        self._test_seen = t
+        if not self.motor_testing:
+            if t <= self._test_start_failed + MOTOR_TEST_RETRY:
+                return MAV_RESULT_FAILED
+            if not self._init_motor_test(t):
+                self.texts.append((MAV_SEVERITY_WARNING, "motor test initialization failed!"))
+                self._test_start_failed = t
+                return MAV_RESULT_FAILED
+        test_type &= 0xFFFFFFFF                                   # uint32_t
+        if test_type != MOTOR_TEST_ORDER_BOARD:
+            self.texts.append((MAV_SEVERITY_WARNING, f"bad test type {test_type:.2f}"))
+            return MAV_RESULT_FAILED
+        if is_equal(throttle_type, MOTOR_TEST_THROTTLE_PILOT):
+            self.texts.append((MAV_SEVERITY_WARNING, f"bad throttle type {throttle_type:.2f}"))
+            return MAV_RESULT_FAILED
+        if is_equal(throttle_type, MOTOR_TEST_THROTTLE_PWM):
+            pwm = throttle
+        elif is_equal(throttle_type, MOTOR_TEST_THROTTLE_PERCENT):
+            pwm = self._percent_pwm(throttle)
+        else:
+            return MAV_RESULT_FAILED
+        ok = self._output_test_num(float_to_int(motor, 8, signed=False), float_to_int(pwm, 16))
+        return MAV_RESULT_ACCEPTED if ok else MAV_RESULT_FAILED
+
+    def _init_motor_test(self, t: float) -> bool:
+        """`Sub::init_motor_test`: refused in the cooldown after a timeout or when disarmed, else all motors 1500."""
+        if self._test_timed_out is not None and t < self._test_timed_out + MOTOR_TEST_COOLDOWN:
+            self.texts.append((MAV_SEVERITY_CRITICAL, "10 second cooldown required after motor test"))
+            return False
+        if not self.armed:
+            self.texts.append((MAV_SEVERITY_WARNING, "Arm motors before testing motors."))
+            return False
+        self._test_pwm = _NEUTRAL.copy()
+        self.motor_testing = True
+        return True
+
+    def _percent_pwm(self, percent: float) -> float:
+        """0..100 % (NaN: 50, as AP_Math's constrain) onto RC3_MIN..MAX in float32, as ArduSub computes it."""
+        percent = 50.0 if np.isnan(percent) else min(max(percent, 0.0), 100.0)
+        low, high = int(self.params["RC3_MIN"]), int(self.params["RC3_MAX"])
+        return f32(low + f32(f32(f32(percent) * f32(0.01)) * (high - low)))
+
+    def _output_test_num(self, motor: int, pwm: int) -> bool:
+        """`AP_MotorsMatrix::output_test_num`: the int16 PWM written raw (as the uint16 of `rc_write`) to an enabled
+        motor, only when armed."""
+        if not self.armed or motor >= len(_NEUTRAL):
+            return False
+        self._test_pwm[motor] = pwm & UINT16_MAX
+        return True
+
     def set_safety(self, on: bool) -> None:
         """The software safety switch (`hal.rcout->force_safety_on/off`): while on, no output sends a pulse."""
         self.safety_on = on
@@ -157,6 +227,7 @@ class ArduSub:
         if t >= self._next_gcs_check:
             self._next_gcs_check = t + GCS_CHECK_PERIOD
             self._gcs_check(t)
+        self._verify_motor_test(t)
         self._held = None
         self._state = state
         if not self.armed or state is None:
@@ -193,6 +264,15 @@ class ArduSub:
         if self.params["FS_PILOT_INPUT"] == FS_PILOT_DISARM:
             self.arm(False)
 
+    def _verify_motor_test(self, t: float) -> None:
+        """`Sub::verify_motor_test`: a running test ends, disarming, after MOTOR_TEST_TIMEOUT without a command."""
+        if not self.motor_testing or t <= self._test_seen + MOTOR_TEST_TIMEOUT:
+            return
+        self.texts.append((MAV_SEVERITY_INFO, "Motor test timed out!"))
+        self.motor_testing = False
+        self.arm(False)
+        self._test_timed_out = t
+
     def _gcs_check(self, t: float) -> None:
         action = int(self.params["FS_GCS_ENABLE"])
         if action == 0 or self._gcs_seen is None:
@@ -222,9 +302,12 @@ class ArduSub:
                          for ch, (low, trim, high) in zip(PILOT_CHANNEL_OF_AXIS, _RC_RANGE)])
 
     def motor_pwm(self) -> np.ndarray:
-        """PWM (8,) of motors 1..8: the mixer when armed, neutral when disarmed."""
+        """PWM (8,) of motors 1..8: the mixer when armed (the test PWMs while a motor test runs), neutral when
+        disarmed."""
         if not self.armed:
             return _NEUTRAL
+        if self.motor_testing:
+            return self._test_pwm
         if self._held is not None:
             return self._held
         key = (self.rc.radio_in[:6].tobytes(), self.params.version)

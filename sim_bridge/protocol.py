@@ -17,6 +17,7 @@ from sim_bridge.ardusub import (
     MAV_RESULT_DENIED,
     MAV_RESULT_FAILED,
     MAV_RESULT_UNSUPPORTED,
+    MAV_SEVERITY_INFO,
     ArduSub,
 )
 from sim_bridge.missions import MissionProtocol
@@ -29,7 +30,6 @@ from sim_bridge.telemetry import ENCODER, Snapshot
 Reply = tuple[object, bool]
 MISSION_MESSAGES = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT",
                     "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK")
-MAV_SEVERITY_INFO = 6
 UINT16_MAX = 65535
 FTP_ACK, FTP_NAK = 128, 129
 FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
@@ -117,6 +117,9 @@ class Protocol:
             before.append((reply, False))
         elif cmd == mavlink.MAV_CMD_REQUEST_MESSAGE:
             result, after = self._request_message(float_to_int(p1, signed=False))
+        elif cmd == mavlink.MAV_CMD_DO_MOTOR_TEST:          # param6 becomes COMMAND_INT's int32 y
+            y = msg.y if msg.get_type() == "COMMAND_INT" else float_to_int(msg.param6)
+            result = self.vehicle.motor_test(p1, p2, msg.param3, y, t)
         elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             result, after = (self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) if is_equal(p1, 1.0)
                              else (MAV_RESULT_FAILED, []))

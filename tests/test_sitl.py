@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import signal
+import time
 from pathlib import Path
 
 import numpy as np
@@ -113,3 +114,22 @@ def test_guided_on_sitl_flies_the_mission_and_leaves_it_as_found(sitl, tmp_path)
     result = json.loads(metrics.read_text())
     print(f"GUIDED on SITL, short mission: RMS {result['rms_position_error_m'] * 100:.1f} cm")
     assert result["completed"] and result["rms_position_error_m"] < 0.25
+
+
+def test_motor_test_on_sitl_killed_outright_stops_and_disarms(sitl, tmp_path):
+    """--output motor-test on the real autopilot: MAV_CMD_DO_MOTOR_TEST accepted (board order, 0-based outputs, raw
+    PWM, as measured on 4.5.3) with the outputs left on their motors; then SIGKILL mid-mission: ArduSub itself ends
+    the test ("Motor test timed out!"), disarms, outputs neutral."""
+    instance, checker = sitl
+    with _run(instance, short_mission(tmp_path, goto_x=4.0, hold=30.0), "--output", "motor-test") as run:
+        run.wait_for("the thrusters through ArduSub's motor test")
+        assert checker.servo_functions() == list(range(33, 41))
+        deadline = time.monotonic() + 30.0
+        while checker.servo_outputs() == [1500] * 8:
+            assert time.monotonic() < deadline, "the outputs never left neutral"
+        run.signal(signal.SIGKILL)
+        assert run.wait() == -signal.SIGKILL
+    statustext = checker.conn.recv_match(type="STATUSTEXT", blocking=True, timeout=10.0,
+                                         condition="STATUSTEXT.text == 'Motor test timed out!'")
+    assert statustext is not None
+    checker.assert_left_safe()

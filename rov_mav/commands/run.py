@@ -56,6 +56,13 @@ is gone it says so: the thrusters then hold their last command on the vehicle. R
 resent with growing waits, so that a lossy link (30 % each way) does not stop a start or a stop; a step of the stop
 the vehicle never confirmed is named, and the exit status is then not 0.
 
+With --output motor-test the outputs stay on their motors and the same PWMs go out as ArduSub's motor test
+(MAV_CMD_DO_MOTOR_TEST, 8 commands a tick) after MANUAL and arming, neutral RC overrides held as pilot input.
+ArduSub runs no mixer during the test and ends it, disarming, 0.5 s of vehicle time after the last command: if this
+process is killed outright (SIGKILL, out of memory, a crash) or the link is cut, the thrusters stop by themselves.
+The stop is the same (neutral, release, disarm); a pilot takeover ends the test, so the vehicle disarms and the
+pilot arms it again. ArduSub refuses the test for 10 s after an earlier one timed out (the run waits for it).
+
 With --controller ardusub-guided there is no law of ours: SERVO1..8_FUNCTION stay on the motors, the run sets
 GUIDED, arms, and streams the reference (lead-in included) as SET_POSITION_TARGET_LOCAL_NED (position, velocity,
 yaw) at --guided-rate Hz of vehicle time; neutral RC overrides are held as pilot input (ArduSub's pilot-input
@@ -111,8 +118,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--guided-rate", type=number(0.5, MAX_RATE), default=10.0, metavar="HZ",
                    help="--controller ardusub-guided: SET_POSITION_TARGET_LOCAL_NED per second of vehicle time, 0.5 "
                         "to 400 (default 10)")
-    p.add_argument("--output", choices=["thrusters"], default="thrusters",
-                   help="how commands reach the vehicle: per-thruster PWMs through RCIN passthrough (default)")
+    p.add_argument("--output", choices=["thrusters", "motor-test"], default="thrusters",
+                   help="how the per-thruster PWMs reach the vehicle: thrusters = RC overrides with SERVO1..8 on RCIN "
+                        "passthrough (default); motor-test = ArduSub's motor test (MAV_CMD_DO_MOTOR_TEST), outputs "
+                        "left on their motors, stopped and disarmed by ArduSub 0.5 s after our last command, so a "
+                        "run killed outright leaves the thrusters stopped (8 commands per tick: a fast link)")
     p.add_argument("--dry-run", action="store_true",
                    help="connect and compute everything (logged), but change no parameter, arm nothing and send no "
                         "override; limit crossings are reported, not acted on")
@@ -244,6 +254,10 @@ def main(args: argparse.Namespace) -> int:
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
+    if guided and args.output != "thrusters":
+        print(f"rov-mav run: error: --output {args.output} carries a law's PWMs; --controller {GUIDED_KIND} flies on "
+              "ArduSub's own mixer", file=sys.stderr)
+        return 2
     if mission is not None:
         check_rerun_output(args, _default_recording(mission))
     bridge, target, session = None, args.target, None
@@ -287,14 +301,15 @@ def main(args: argparse.Namespace) -> int:
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
-                         velocity_blend=args.velocity_blend, limits=limits)
+                         velocity_blend=args.velocity_blend, output=args.output, limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
         if args.log:
             run_log = RunLog(args.log)
             run_log.write_run_info({
                 "mission": mission.name, "mission_source": mission.source, "controller": kind,
-                "rate_hz": args.rate, "target": args.target or "built-in vehicle", "dry_run": args.dry_run,
+                "rate_hz": args.rate, "output": args.output, "target": args.target or "built-in vehicle",
+                "dry_run": args.dry_run,
                 "limits": dataclasses.asdict(limits),
                 "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
             session.taps.append(run_log.log_mavlink)

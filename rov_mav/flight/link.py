@@ -1,7 +1,8 @@
-"""The MAVLink session with an ArduSub vehicle: connect, identify, parameters, mode, arming, streams, overrides.
+"""The MAVLink session with an ArduSub vehicle: connect, identify, parameters, mode, arming, streams, overrides,
+motor tests.
 
-Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and the held RC override (the
-control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
+Rates are counted in vehicle time (`VehicleClock`): the GCS heartbeat (1 Hz) and the held RC override and motor test
+(the control rate) go out as often as the vehicle's own clock asks, so a vehicle running N x faster than real time
 never sees a lost link. Everything that waits for an answer pumps the link meanwhile (so heartbeats and overrides
 keep flowing). A request (parameter read or set, command) is sent again while unanswered, each wait longer than the
 last (RETRY_GROWTH, up to RETRY_LONGEST wall s), and given up after RETRY_BUDGET wall s, or sooner once the vehicle
@@ -40,6 +41,9 @@ NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
 RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
+MOTOR_TEST_PWM = 1              # MAV_CMD_DO_MOTOR_TEST param2: MOTOR_TEST_THROTTLE_PWM
+MOTOR_TEST_BOARD = 2            # ... param6: MOTOR_TEST_ORDER_BOARD, param1 the 0-based output (ArduSub 4.5)
+MOTOR_TEST_TIMEOUT = 0.5        # vehicle s after the last DO_MOTOR_TEST until ArduSub ends the test and disarms
 RETRY_FIRST = 0.3               # wall s before the first resend while no round trip was timed (> 2 x 100 ms)
 RETRY_MIN = 0.05                # wall s: the shortest wait before a resend
 RTT_MARGIN = 3.0                # round trips to wait before the first resend
@@ -90,6 +94,8 @@ class Session:
         self.heartbeat = None                 # the vehicle's last HEARTBEAT
         self.override: list[int] | None = None   # PWMs held (resent at `override_rate` vehicle Hz)
         self.override_rate = 50.0
+        self.motor_test: list[int] | None = None   # motor-test PWMs held (resent at `override_rate` vehicle Hz)
+        self.motor_test_answers = {"accepted": 0, "refused": 0}   # COMMAND_ACKs of DO_MOTOR_TEST from the vehicle
         self.interrupt: Callable[[], None] | None = None   # called while waiting; may raise to stop waiting
         self.stations: StationWatch | None = None   # other stations on the link, once the vehicle is known
         self.echo = OverrideEcho()            # the overrides sent recently, to recognise them in RC_CHANNELS
@@ -99,6 +105,7 @@ class Session:
         self._unsigned_since: float | None = None   # wall s of the first rejected vehicle HEARTBEAT
         self._next_heartbeat = 0.0
         self._last_override_t = -1e9
+        self._last_motor_test_t = -1e9
         self._wall_last_heartbeat = -1e9
         self._heard = time.monotonic()         # wall s of the vehicle's last message
         self._rtt: float | None = None         # wall s: smoothed round trip of a request
@@ -348,6 +355,25 @@ class Session:
         if values[0] != RELEASE:
             self.echo.sent_now(values)
 
+    # -- motor test ------------------------------------------------------------------------------------------
+
+    def send_motor_test(self, pwms) -> None:
+        """MAV_CMD_DO_MOTOR_TEST of outputs 1-8 (board order, raw PWM) now, and hold them (resent at `override_rate`
+        vehicle Hz). ArduSub runs no mixer during the test and ends it, disarming, MOTOR_TEST_TIMEOUT vehicle s after
+        the last one (ArduSub/motors.cpp, `verify_motor_test`): if this process dies, the thrusters stop."""
+        self.motor_test = [int(round(v)) for v in pwms]
+        self._send_motor_test(self.motor_test)
+
+    def end_motor_test(self) -> None:
+        """Stop holding the motor test: ArduSub ends it (and disarms) MOTOR_TEST_TIMEOUT later."""
+        self.motor_test = None
+
+    def _send_motor_test(self, values: list[int]) -> None:
+        for output, pwm in enumerate(values):
+            self._send("command_long", self.vehicle.sysid, self.vehicle.compid, mavlink.MAV_CMD_DO_MOTOR_TEST, 0,
+                       output, MOTOR_TEST_PWM, pwm, MOTOR_TEST_TIMEOUT, 0, MOTOR_TEST_BOARD, 0)
+        self._last_motor_test_t = self.clock.now()
+
     # -- pumping ---------------------------------------------------------------------------------------------
 
     def poll(self, timeout: float) -> list[tuple[object, float]]:
@@ -373,7 +399,7 @@ class Session:
         self.service()
 
     def service(self) -> None:
-        """Send the GCS heartbeat and the held override if they are due in vehicle time."""
+        """Send the GCS heartbeat, the held override and the held motor test if they are due in vehicle time."""
         now = self.clock.now()
         if self.rejections is not None:
             advance(self.conn.mav.signing, time.time())
@@ -383,6 +409,8 @@ class Session:
             self._next_heartbeat = now + HEARTBEAT_PERIOD
         if self.override is not None and now - self._last_override_t >= 1.0 / self.override_rate:
             self._send_override(self.override)
+        if self.motor_test is not None and now - self._last_motor_test_t >= 1.0 / self.override_rate:
+            self._send_motor_test(self.motor_test)
 
     def _send_heartbeat(self) -> None:
         self._send("heartbeat", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
@@ -452,6 +480,9 @@ class Session:
                 self.clock.observe(boot_ms / 1000.0)
             if kind == "HEARTBEAT":
                 self.heartbeat = msg
+            elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
+                answer = "accepted" if msg.result == mavlink.MAV_RESULT_ACCEPTED else "refused"
+                self.motor_test_answers[answer] += 1
         else:
             self.stations.observe(msg, self.clock.now())
 

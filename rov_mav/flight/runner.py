@@ -14,6 +14,10 @@ on the link, in vehicle time (`runlog.mission_start_text`), so that any telemetr
 With a GuidedStream instead of a law (`--controller ardusub-guided`, flight/guided.py): no passthrough, GUIDED
 instead of MANUAL, the tick sends the reference to the vehicle's own position controller; the stop first leaves
 GUIDED for MANUAL (so neutral can be confirmed) and ends by setting back the mode it found.
+With `output` MOTOR_TEST the outputs stay on their motors and the tick's PWMs go out as ArduSub's motor test
+(MAV_CMD_DO_MOTOR_TEST, board order, raw PWM) while neutral overrides are held as pilot input: ArduSub runs no mixer
+during the test and ends it, disarming, 0.5 s after the last command, so a run killed outright (SIGKILL, a crash, a
+cut tether) leaves the thrusters stopped instead of holding their last command.
 Stop (completion, Ctrl-C, SIGTERM, exception, lost link, failed arm, limit crossed): neutral 1500 on all eight
 channels (confirmed by SERVO_OUTPUT_RAW), release the overrides, disarm a vehicle this run armed, restore
 SERVO1..8_FUNCTION and the GCS sysid, restore the message rates, and say what was done; if the vehicle no longer
@@ -37,7 +41,7 @@ from rov_mav.control.controller import Controller
 from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.guided import GuidedStream
 from rov_mav.flight.history import History
-from rov_mav.flight.link import CHANNELS, MANUAL, NEUTRAL, LinkError, Session, mavlink, mode_name
+from rov_mav.flight.link import CHANNELS, MANUAL, MOTOR_TEST_TIMEOUT, NEUTRAL, LinkError, Session, mavlink, mode_name
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
 from rov_mav.flight.stream_rate import measure, too_slow
@@ -64,6 +68,9 @@ PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 STALE_REPORTS = 3                # stale-telemetry episodes reported one by one
 DRY_RUN_SYSID = 254               # a dry run's own sysid: anything but the vehicle's GCS sysid
 LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent vehicle is reported as lost
+MOTOR_TEST_START = 13.0          # vehicle s for the first DO_MOTOR_TEST to be accepted: ArduSub refuses one for 10 s
+                                 # after an earlier test timed out, and retries a refused start every 2 s
+THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
 # Ctrl-C, kill, a closed terminal or ssh session, Ctrl-\: each ends in the safe stop.
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
@@ -109,6 +116,7 @@ class RunOptions:
     link_timeout: float = 2.0          # vehicle s without telemetry -> abort
     approach_speed: float = 0.2        # m/s to the mission's start pose
     velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
+    output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
     limits: Limits = Limits()
 
 
@@ -183,7 +191,7 @@ class Runner:
         self.signal_name: str | None = None
         self.stopping = False
         self.last_state: State | None = None
-        self.last_override: list[int] | None = None
+        self.last_command: list[int] | None = None    # the last flight PWMs sent
         self.lead_in: Mission | None = None
         self.t_start: float | None = None      # vehicle time of the first tick
         self.announced = False                 # the mission's start was said on the link
@@ -319,8 +327,8 @@ class Runner:
         self.actuation.set_directions(np.array(signs))
         reversed_ = [n for n, sign in enumerate(signs, 1) if sign < 0]
         if reversed_:
-            self.say(f"MOT_n_DIRECTION = -1 on thruster(s) {reversed_}: passthrough bypasses it, so their PWM is "
-                     "mirrored about 1500")
+            self.say(f"MOT_n_DIRECTION = -1 on thruster(s) {reversed_}: passthrough and the motor test bypass it, so "
+                     "their PWM is mirrored about 1500")
         stale = []
         for n in range(1, CHANNELS + 1):
             name = f"SERVO{n}_FUNCTION"
@@ -435,6 +443,9 @@ class Runner:
         if self.guided is not None:
             self._take_over_guided()
             return
+        if self.options.output == MOTOR_TEST:
+            self._take_over_motor_test()
+            return
         names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
         passthrough = {name: (float(PASSTHROUGH_BASE + n), self.saved_functions[name][1])
                        for n, name in enumerate(names, 1)}
@@ -443,13 +454,35 @@ class Runner:
             raise Abort("the vehicle did not confirm " + ", ".join(f"{n} = {int(passthrough[n][0])}" for n in failed)
                         + " (RCIN passthrough)")
         self.say("SERVO1..8_FUNCTION set to RCIN1..8 passthrough (confirmed)")
+        self._arm_in_manual()
+        self.say("armed in MANUAL")
+
+    def _arm_in_manual(self) -> None:
+        s = self.session
         if s.heartbeat.custom_mode != MANUAL and not s.set_mode(MANUAL):
             raise Abort("the vehicle did not enter MANUAL mode")
         self.armed_by_us = True
         if not s.arm(True):
             raise Abort("arming failed: the vehicle refused or did not confirm it")
         self.flying_since = s.clock.now()
-        self.say("armed in MANUAL")
+
+    def _take_over_motor_test(self) -> None:
+        """MANUAL, armed, then the motor test held at neutral until the vehicle accepts it: the outputs stay on their
+        motors, the neutral overrides held as pilot input (ArduSub's pilot-input failsafe disarms without it)."""
+        s = self.session
+        self._arm_in_manual()
+        s.send_motor_test([NEUTRAL] * CHANNELS)
+        start = s.clock.now()
+        wall_end = time.monotonic() + s.clock.wall_seconds(MOTOR_TEST_START) + 1.0
+        while s.motor_test_answers["accepted"] == 0:
+            self._interrupt()
+            if s.clock.now() - start > MOTOR_TEST_START or time.monotonic() > wall_end or not s.armed:
+                raise Abort(f"the vehicle did not accept MAV_CMD_DO_MOTOR_TEST within {MOTOR_TEST_START:g} s "
+                            f"({s.motor_test_answers['refused']} refused): ArduSub refuses it while disarmed and "
+                            "for 10 s after an earlier motor test timed out (its STATUSTEXT says which)")
+            self._pump(0.02)
+        self.say("armed in MANUAL, the thrusters through ArduSub's motor test (MAV_CMD_DO_MOTOR_TEST, accepted): "
+                 f"ArduSub stops them and disarms {MOTOR_TEST_TIMEOUT:g} s after our last command")
 
     def _take_over_guided(self) -> None:
         """GUIDED, then armed: the outputs stay on their motors (ArduSub's mixer), the neutral overrides held."""
@@ -633,8 +666,7 @@ class Runner:
             thrusts, pwm, _ = self.actuation.command(out.tau)
             self._check_limits(state, reference)
             if not o.dry_run:
-                self.session.send_override(pwm)
-                self.last_override = self.session.override
+                self._send_outputs(pwm)
         latency = time.perf_counter() - state.received
         age = self.session.clock.now() - state.t
         self._count_tick(state.t, latency)
@@ -647,6 +679,15 @@ class Runner:
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration
+
+    def _send_outputs(self, pwm: np.ndarray) -> None:
+        """The tick's eight PWMs: ArduSub's motor test, or RC overrides for the outputs on RCIN passthrough."""
+        if self.options.output == MOTOR_TEST:
+            self.session.send_motor_test(pwm)
+            self.last_command = self.session.motor_test
+        else:
+            self.session.send_override(pwm)
+            self.last_command = self.session.override
 
     def _count_tick(self, t: float, latency: float) -> None:
         self._ticks.append(t)
@@ -681,6 +722,8 @@ class Runner:
 
     def _send_neutral(self) -> None:
         self.session.send_override([NEUTRAL] * CHANNELS)
+        if self.session.motor_test is not None:
+            self.session.send_motor_test([NEUTRAL] * CHANNELS)
         self.actuation.reset()
         self.touched = True
 
@@ -732,7 +775,17 @@ class Runner:
             pending = self.changed_functions + ([self.saved_gcs[0]] if self.saved_gcs is not None else [])
             self.unconfirmed += (["disarm"] if self.armed_by_us else []) + (
                 ["restore " + ", ".join(pending)] if pending else [])
-            last = self.last_override or [NEUTRAL] * CHANNELS
+            last = self.last_command or [NEUTRAL] * CHANNELS
+            if s.motor_test is not None:
+                s.end_motor_test()
+                report.append(
+                    "THE LINK IS GONE: the vehicle did not answer. Its thrusters were driven by ArduSub's motor test, "
+                    f"which it ends {MOTOR_TEST_TIMEOUT:g} s of vehicle time after the last command reached it: "
+                    f"outputs neutral, vehicle disarmed (the last flight command sent was {last}; neutral was sent "
+                    "after it, unconfirmed)."
+                    + (f" Set {self.saved_gcs[0]} back to {self.saved_gcs[1]} when the link is back."
+                       if self.saved_gcs is not None else ""))
+                return self._finish(report)
             report.append(
                 "THE LINK IS GONE: the vehicle did not answer. Its thrusters HOLD THEIR LAST COMMAND: RCIN "
                 "passthrough keeps the last PWM that reached it (the last flight command sent was "
@@ -755,6 +808,9 @@ class Runner:
             else:
                 report.append("disarm NOT confirmed")
                 self.unconfirmed.append("disarm")
+        if s.motor_test is not None:
+            s.end_motor_test()
+            report.append(f"motor test no longer sent: ArduSub ends it {MOTOR_TEST_TIMEOUT:g} s later (and disarms)")
         if self.guided is not None and self.takeover is None:
             report += attempt("restore mode", self._restore_mode) or []
         # The motors first, then the GCS sysid: a pilot's joystick must never reach an output on passthrough.
@@ -794,6 +850,9 @@ class Runner:
         station = self.takeover.station
         follows = "ArduSub's mixer follows the GCS's joystick" if station is None or station.sysid == gcs else (
             f"ArduSub ignores the joystick of sysid {station.sysid} until its GCS sysid ({gcs}) is set to it")
+        if self.options.output == MOTOR_TEST:
+            follows = (f"ArduSub ends the motor test {MOTOR_TEST_TIMEOUT:g} s after our last command and disarms: "
+                       f"arm it again to drive; then {follows}")
         return (f"handed over {took:.2f} s of vehicle time after it was seen: {state} in {mode}, thrusters on their "
                 f"motors ({follows}), overrides released")
 

@@ -1,0 +1,111 @@
+"""`rov-mav run --output motor-test`: the law's PWMs as ArduSub's motor test (MAV_CMD_DO_MOTOR_TEST) with the outputs
+left on their motors. The point of it is what happens when the runner dies without a word: ArduSub ends the test
+and disarms 0.5 s after the last command, where RCIN passthrough (`--output thrusters`) keeps the last PWM on the
+channels its failsafes do not reset. Both are shown here against a bridge process, the runner killed with SIGKILL.
+
+The bridge runs at 3x (not the suite's 10x): the motor test's 0.5 s is then 0.17 s of wall time, which a loaded
+machine's scheduler does not take from the runner's loop."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import pytest
+from run_helpers import (
+    WAIT,
+    RunnerProcess,
+    armed,
+    assert_left_safe,
+    bridge_with_checker,
+    checker,
+    fresh,
+    servo_functions,
+    servo_outputs,
+    short_mission,
+)
+
+from rov_mav import cli
+
+SPEEDUP = 3.0
+MOTORS = list(range(33, 41))         # SERVOn_FUNCTION of motors 1..8
+PASSTHROUGH = list(range(51, 59))    # ... of RCIN1..8
+
+
+def _runner(bridge, mission, *args: str) -> RunnerProcess:
+    return RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--heartbeat-timeout", "60",
+                         *args)
+
+
+def _flying(gcs, functions: list[int]) -> None:
+    """The run's outputs are off neutral on the given routing."""
+    deadline = time.monotonic() + WAIT
+    while servo_outputs(gcs) == [1500] * 8:
+        assert time.monotonic() < deadline, "the outputs never left neutral"
+    assert servo_functions(gcs) == functions
+
+
+def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(tmp_path):
+    """A mission flown on the motors' own routing (no parameter changed), then a second right after it: ArduSub ends
+    every test by its timeout (a disarm does not end it) and refuses a new one for 10 s after, so the second run
+    holds neutral until the vehicle accepts, then flies and completes."""
+    metrics = tmp_path / "metrics.json"
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=SPEEDUP)
+    with bridge:
+        gcs = checker(checker_port, speedup=SPEEDUP)
+        try:
+            with _runner(bridge, short_mission(tmp_path, goto_x=2.0, hold=2.0), "--output", "motor-test",
+                         "--metrics", str(metrics)) as run:
+                run.wait_for("the thrusters through ArduSub's motor test")
+                _flying(gcs, MOTORS)
+                assert run.wait() == 0, run.output
+            assert_left_safe(gcs)
+            with _runner(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0), "--output", "motor-test") as rerun:
+                assert rerun.wait() == 0, rerun.output
+            assert_left_safe(gcs)
+            assert fresh(gcs, "HEARTBEAT").custom_mode == 19
+        finally:
+            gcs.close()
+    result = json.loads(metrics.read_text())
+    assert result["completed"] and result["rms_position_error_m"] < 0.10, result
+    assert "SERVO1..8_FUNCTION set" not in run.output and "restored SERVO" not in run.output
+    assert "disarmed (confirmed by HEARTBEAT)" in run.output and "motor test no longer sent" in run.output
+
+
+@pytest.mark.parametrize("output", ["motor-test", "thrusters"])
+def test_a_run_killed_outright(tmp_path, output):
+    """SIGKILL mid-mission, nothing said to the vehicle. motor-test: ArduSub ends the test ("Motor test timed
+    out!"), disarms and every output reads 1500, within a second of vehicle time. thrusters: the hazard it avoids -
+    6 s of vehicle time later (past RC_OVERRIDE_TIME and the pilot-input failsafe) outputs 7 and 8, on RCIN
+    passthrough, still hold the dead run's last PWM."""
+    mission = short_mission(tmp_path, goto_x=6.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=SPEEDUP)
+    with _runner(bridge, mission, "--output", output) as run, bridge:
+        gcs = checker(checker_port, speedup=SPEEDUP)
+        try:
+            run.wait_for("armed in MANUAL")
+            _flying(gcs, MOTORS if output == "motor-test" else PASSTHROUGH)
+            run.signal(signal.SIGKILL)
+            killed = time.monotonic()
+            assert run.wait() == -signal.SIGKILL
+            if output == "motor-test":
+                gcs.recv("STATUSTEXT", cond=lambda m: m.text == "Motor test timed out!")
+                assert not armed(gcs) and servo_outputs(gcs) == [1500] * 8
+                assert time.monotonic() - killed < 1.0 / SPEEDUP + 2.0      # 1 s of vehicle time, and slack
+            else:
+                time.sleep(6.0 / SPEEDUP)
+                outputs = servo_outputs(gcs)
+                assert outputs[6] != 1500 and outputs[7] != 1500, outputs
+                assert servo_functions(gcs) == PASSTHROUGH
+        finally:
+            gcs.close()
+
+
+def test_motor_test_is_for_a_law_of_ours(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    mission = short_mission(tmp_path)
+    assert cli.main(["run", str(mission), "--controller", "ardusub-guided", "--output", "motor-test"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--output motor-test carries a law's PWMs" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.yaml"]
