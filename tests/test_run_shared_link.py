@@ -150,3 +150,22 @@ def test_the_pilot_moving_the_joystick_takes_the_vehicle_over(tmp_path):
         assert outputs != [1500] * 8            # ArduSub's mixer now follows the pilot's joystick
     assert "pilot takeover: station sysid 255 component 190" in run.output
     assert _handover_time(run.output) <= HANDOVER_LIMIT
+
+
+def test_with_motor_test_a_pilot_takeover_leaves_the_vehicle_disarmed_for_the_pilot_to_arm(tmp_path):
+    """--output motor-test: ArduSub's motor test runs no mixer, and only its timeout ends it, with a disarm. So the
+    handover stops the test: within a second of vehicle time the vehicle is disarmed, neutral, on its motors, the GCS
+    sysid back to the pilot's, and the run says the pilot must arm it."""
+    mission = short_mission(tmp_path, hold=60.0)
+    with _shared_link(tmp_path, speedup=3.0) as (hub, gcs), _closing(_pilot(hub)) as pilot:
+        with _run(hub, mission, "--output", "motor-test") as run:
+            run.wait_for("the thrusters through ArduSub's motor test")
+            time.sleep(1.0)
+            pilot.joystick = (600, 0, 500, 0)                    # forward
+            assert run.wait() == 3, run.output
+        gcs.recv("STATUSTEXT", cond=lambda m: m.text == "Motor test timed out!")
+        assert not armed(gcs) and servo_outputs(gcs) == [1500] * 8
+        assert servo_functions(gcs) == list(range(33, 41))
+        assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
+    assert "pilot takeover: station sysid 255 component 190" in run.output
+    assert "arm it again to drive" in run.output and _handover_time(run.output) <= HANDOVER_LIMIT
