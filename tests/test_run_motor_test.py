@@ -27,6 +27,8 @@ from run_helpers import (
 )
 
 from rov_mav import cli
+from rov_mav.mission.missions import load_mission
+from rov_mav.review.dive_review import review_dive
 
 SPEEDUP = 3.0
 MOTORS = list(range(33, 41))         # SERVOn_FUNCTION of motors 1..8
@@ -49,14 +51,15 @@ def _flying(gcs, functions: list[int]) -> None:
 def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(tmp_path):
     """A mission flown on the motors' own routing (no parameter changed), then a second right after it: ArduSub ends
     every test by its timeout (a disarm does not end it) and refuses a new one for 10 s after, so the second run
-    holds neutral until the vehicle accepts, then flies and completes."""
-    metrics = tmp_path / "metrics.json"
+    holds neutral until the vehicle accepts, then flies and completes. The first run's MAVLink log, reviewed as any
+    telemetry log: its thruster commands are the DO_MOTOR_TEST stream, at the run's rate and latency."""
+    metrics, log = tmp_path / "metrics.json", tmp_path / "log"
+    first = short_mission(tmp_path, goto_x=2.0, hold=2.0)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=SPEEDUP)
     with bridge:
         gcs = checker(checker_port, speedup=SPEEDUP)
         try:
-            with _runner(bridge, short_mission(tmp_path, goto_x=2.0, hold=2.0), "--output", "motor-test",
-                         "--metrics", str(metrics)) as run:
+            with _runner(bridge, first, "--output", "motor-test", "--metrics", str(metrics), "--log", str(log)) as run:
                 run.wait_for("the thrusters through ArduSub's motor test")
                 _flying(gcs, MOTORS)
                 assert run.wait() == 0, run.output
@@ -69,6 +72,12 @@ def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(
             gcs.close()
     result = json.loads(metrics.read_text())
     assert result["completed"] and result["rms_position_error_m"] < 0.10, result
+    review = review_dive(log / "mavlink.tlog", load_mission(first)).metrics
+    loop = review["loop"]
+    assert loop["source"].startswith("MAV_CMD_DO_MOTOR_TEST from sysid")
+    assert result["loop"]["ticks"] <= loop["ticks"] <= result["loop"]["ticks"] + 100   # and the stop's neutral
+    assert loop["latency_p50_ms"] == pytest.approx(result["loop"]["latency_p50_ms"], abs=0.5)
+    assert review["saturation"]["commands"]["samples"] == loop["ticks"]
     assert "SERVO1..8_FUNCTION set" not in run.output and "restored SERVO" not in run.output
     assert "disarmed (confirmed by HEARTBEAT)" in run.output and "motor test no longer sent" in run.output
 

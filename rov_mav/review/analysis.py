@@ -60,10 +60,11 @@ def telemetry(t: np.ndarray, stale_periods: float = STALE_PERIODS) -> dict:
 
 
 def command_rates(dive: Dive, window: tuple[float, float] | None) -> list[dict]:
-    """Per station: the RC_CHANNELS_OVERRIDE and MANUAL_CONTROL it sent (within `window`, vehicle s), and their
-    rate in vehicle Hz."""
+    """Per station: the RC_CHANNELS_OVERRIDE, MANUAL_CONTROL and DO_MOTOR_TEST (rows of eight outputs) it sent
+    (within `window`, vehicle s), and their rate in vehicle Hz."""
     streams = [(sysid, "RC_CHANNELS_OVERRIDE", wall) for sysid, (wall, _) in dive.overrides.items()]
     streams += [(sysid, "MANUAL_CONTROL", wall) for sysid, wall in dive.joysticks.items()]
+    streams += [(sysid, "MAV_CMD_DO_MOTOR_TEST x 8", wall) for sysid, (wall, _) in dive.motor_tests.items()]
     out = []
     for sysid, kind, wall in sorted(streams, key=lambda s: (s[0], s[1])):
         t = vehicle_time(dive, wall)

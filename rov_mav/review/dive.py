@@ -8,12 +8,13 @@ that sends a vehicle's HEARTBEAT (or state telemetry); what arrives before it is
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from rov_mav.flight.history import History
-from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.flight.link import CHANNELS, MOTOR_TEST_PWM, NEUTRAL, mavlink
 from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
 from rov_mav.mission.mission_items import MissionItem
 
@@ -37,6 +38,8 @@ class Dive:
     servo: np.ndarray                             # (M, 8) us
     overrides: dict[int, tuple[np.ndarray, np.ndarray]]   # sysid -> (wall (K,), channels 1-8 (K, 8), NaN = unset)
     joysticks: dict[int, np.ndarray]              # sysid -> wall (K,) of its MANUAL_CONTROL
+    motor_tests: dict[int, tuple[np.ndarray, np.ndarray]]   # sysid -> (wall (K,), outputs 1-8 (K, 8)): its
+                                                  # MAV_CMD_DO_MOTOR_TEST PWMs, a row at each command of output 8
     power_wall: np.ndarray                        # (P,) SYS_STATUS
     voltage: np.ndarray                           # (P,) V (NaN when not reported)
     current: np.ndarray                           # (P,) A (NaN when not reported)
@@ -71,6 +74,8 @@ class DiveRecorder:
         self._heartbeats = History(wall=1, armed=1, mode=1)
         self._overrides: dict[int, History] = {}
         self._joysticks: dict[int, History] = {}
+        self._motor_tests: dict[int, History] = {}
+        self._test_pwm: dict[int, np.ndarray] = {}    # sysid -> its motor-test PWMs so far
         self.texts: list[tuple[float, int, int, str]] = []
         self.params: dict[str, float] = {}
         self.param_changes: list[tuple[float, str, float]] = []
@@ -106,6 +111,7 @@ class DiveRecorder:
             servo_t=self._servo.column("t"), servo=self._servo.column("pwm"),
             overrides={s: (h.column("wall"), h.column("pwm")) for s, h in self._overrides.items()},
             joysticks={s: h.column("wall") for s, h in self._joysticks.items()},
+            motor_tests={s: (h.column("wall"), h.column("pwm")) for s, h in self._motor_tests.items()},
             power_wall=self._power.column("wall"), voltage=self._power.column("voltage"),
             current=self._power.column("current"),
             consumed_wall=self._consumed.column("wall"), consumed_mah=self._consumed.column("mah"),
@@ -187,10 +193,24 @@ class DiveRecorder:
             history.append(wall=wall, pwm=[np.nan if v in UNSET else v for v in values])
         elif kind == "MANUAL_CONTROL" and msg.target == self.vehicle[0]:
             self._joysticks.setdefault(sysid, History(wall=1)).append(wall=wall)
+        elif kind in ("COMMAND_LONG", "COMMAND_INT") and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST \
+                and msg.target_system == self.vehicle[0]:
+            self._motor_test(wall, sysid, msg)
         elif kind == "STATUSTEXT":
             self.texts.append((wall, sysid, msg.severity, msg.text))
         else:
             self._mission_traffic(msg, kind)
+
+    def _motor_test(self, wall: float, sysid: int, msg) -> None:
+        """A DO_MOTOR_TEST with a PWM for output param1 (0-based, as ArduSub's board order): the station's eight
+        PWMs are a row once its command for the last output arrives (a rov-mav run sends outputs 1..8 in a row)."""
+        output = int(msg.param1) if math.isfinite(msg.param1) else -1
+        if int(msg.param2) != MOTOR_TEST_PWM or not 0 <= output < CHANNELS:
+            return
+        pwm = self._test_pwm.setdefault(sysid, np.full(CHANNELS, float(NEUTRAL)))
+        pwm[output] = msg.param3
+        if output == CHANNELS - 1:
+            self._motor_tests.setdefault(sysid, History(wall=1, pwm=CHANNELS)).append(wall=wall, pwm=pwm.copy())
 
     # -- the mission, either way -----------------------------------------------------------------------------
 

@@ -108,8 +108,10 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     t = dive.state_t - t0
     trace = columns = planned = reference_path = None
     metrics: dict = {}
-    main = _main_commander(dive, window)
-    command_t = analysis.vehicle_time(dive, dive.overrides[main][0]) if main is not None else np.zeros(0)
+    tested = _main_commander(dive.motor_tests, dive, window)     # a run on ArduSub's motor test
+    main = tested if tested is not None else _main_commander(dive.overrides, dive, window)
+    stream = dive.motor_tests if tested is not None else dive.overrides
+    command_t = analysis.vehicle_time(dive, stream[main][0]) if main is not None else np.zeros(0)
     if mission is not None and t.size:
         flown = _mission_span(t, mission.duration)
         if not flown.any():
@@ -134,18 +136,24 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     if t.size:
         trace = _trace(t, dive.eta, dive.nu, reference)
         columns = _tlog_columns(dive, t, t0, reference, command_t)
-    thrusters = main is not None and _passthrough(dive)
-    latency = analysis.loop_latency(dive.state_wall, dive.overrides[main][0]) if thrusters else np.zeros(0)
+    thrusters = main is not None and (tested is not None or _passthrough(dive))
+    latency = analysis.loop_latency(dive.state_wall, stream[main][0]) if thrusters else np.zeros(0)
     in_window = _within(command_t, window)
     loop = analysis.loop_figures(command_t[in_window], latency)
-    loop["source"] = "no RC overrides" if main is None else (
-        f"RC_CHANNELS_OVERRIDE from sysid {main}, " + ("thruster PWMs (RCIN passthrough); latency on the log's clock"
-                                                       if thrusters else "pilot inputs (outputs not on passthrough)"))
+    if main is None:
+        loop["source"] = "no RC overrides"
+    elif tested is not None:
+        loop["source"] = (f"MAV_CMD_DO_MOTOR_TEST from sysid {main}, thruster PWMs (ArduSub's motor test); latency "
+                          "on the log's clock")
+    else:
+        loop["source"] = f"RC_CHANNELS_OVERRIDE from sysid {main}, " + (
+            "thruster PWMs (RCIN passthrough); latency on the log's clock" if thrusters
+            else "pilot inputs (outputs not on passthrough)")
     metrics["loop"] = loop
     review = DiveReview(label=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace, internals=False,
                         columns=columns, planned=planned, reference_path=reference_path)
     commands = {} if not thrusters else {f"commanded (sysid {main})": (command_t[in_window] - t0,
-                                                                       dive.overrides[main][1][in_window])}
+                                                                       stream[main][1][in_window])}
     _dive_figures(review, dive, t0, window, commands, source="telemetry log")
     metrics["source"] = _source(path, "telemetry log", report)
     return review
@@ -359,10 +367,11 @@ def _tracking(name: str, controller: str | None, t: np.ndarray, eta: np.ndarray,
     return metrics
 
 
-def _main_commander(dive: Dive, window: tuple[float, float] | None) -> int | None:
-    """The station that sent the most RC overrides (within `window`)."""
+def _main_commander(streams: dict[int, tuple[np.ndarray, np.ndarray]], dive: Dive,
+                    window: tuple[float, float] | None) -> int | None:
+    """The station that sent the most of `streams` (RC overrides, motor tests) within `window`."""
     best, most = None, 0
-    for sysid, (wall, _) in dive.overrides.items():
+    for sysid, (wall, _) in streams.items():
         n = int(_within(analysis.vehicle_time(dive, wall), window).sum())
         if n > most:
             best, most = sysid, n
