@@ -342,7 +342,7 @@ def main(args: argparse.Namespace) -> int:
               f"{metrics['rms_position_error_steady_m'] * 100:.2f} cm, max {metrics['max_position_error_m'] * 100:.2f}"
               f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad")
     print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
-          f"override-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms", flush=True)
+          f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms", flush=True)
     print(f"  rerun: {rerun_target.describe()}")
     if rerun is not None:
         print(f"  {rerun.stats.describe(1.0 / args.rate)}")
