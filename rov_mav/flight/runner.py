@@ -130,7 +130,7 @@ class RunResult:
     eta_d: np.ndarray                  # (N, 6)
     tau: np.ndarray                    # (N, 6)
     tau_hat: np.ndarray                # (N, 6)
-    latency_ms: np.ndarray             # (M,) telemetry in -> override out, every tick
+    latency_ms: np.ndarray             # (M,) telemetry in -> command out, every tick
     tick_times: np.ndarray             # (M,) vehicle s of every tick
     report: list[str] = field(default_factory=list)
 
