@@ -96,7 +96,7 @@ def test_another_stations_overrides_mid_run_hand_the_vehicle_over(tmp_path):
                 intruder.start_pump()
                 assert run.wait() == 3, run.output
         assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))   # armed, on its motors
-    assert "another station took over the RC input: station sysid 255 component 190" in run.output
+    assert "another station took over the thrusters: station sysid 255 component 190" in run.output
     assert _handover_time(run.output) <= HANDOVER_LIMIT
 
 

@@ -10,7 +10,7 @@ import pytest
 from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import mavlink
-from rov_mav.flight.stations import ECHO_MEMORY, OverrideEcho
+from rov_mav.flight.stations import ECHO_MEMORY, OverrideEcho, Sighting, StationWatch, judge
 from rov_mav.flight.vehicle_clock import VehicleClock
 from rov_mav.flight.vehicle_state import StateDecoder
 from rov_mav.mission.approach import approach
@@ -180,3 +180,23 @@ def test_streams_half_a_period_apart_keep_their_pairing_after_a_loss():
                     states.append(decoder.state(received=0.0))
         assert [s.eta[0] for s in states] == [k for k in range(30) if k != 12], lost
         assert all(s.eta[0] == s.eta[5] and s.t == pytest.approx(1.010 + 0.02 * s.eta[0]) for s in states), lost
+
+
+def _from(sysid: int, msg):
+    """`msg` as it arrives from `sysid` (packed and parsed: the source is in the header)."""
+    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=190)
+    return mav.decode(bytearray(msg.pack(mav)))
+
+
+def test_a_station_sending_motor_tests_drives_the_thrusters():
+    """ArduSub takes MAV_CMD_DO_MOTOR_TEST from any sysid: a station sending it to the vehicle (or to all) is driving
+    it - the vehicle is refused before a run, taken from the run while flying; one aimed elsewhere is not."""
+    watch = StationWatch(vehicle_sysid=1)
+    watch.observe(_from(42, mavlink.MAVLink_command_long_message(7, 1, 209, 0, 0, 1, 1600, 0.5, 0, 2, 0)), 4.0)
+    assert watch.overriding(0.0) == []
+    watch.observe(_from(42, mavlink.MAVLink_command_long_message(1, 1, 209, 0, 0, 1, 1600, 0.5, 0, 2, 0)), 5.0)
+    watch.observe(_from(43, mavlink.MAVLink_command_int_message(0, 1, 0, 209, 0, 0, 3, 1, 1500, 0, 0, 2, 0)), 6.0)
+    assert [s.sysid for s in watch.overriding(5.0)] == [42, 43] and watch.overriding(6.5) == []
+    assert "MAV_CMD_DO_MOTOR_TEST x 1" in watch.overriding(5.0)[0].describe()
+    verdict = judge(Sighting(since=0.0, armed=False, passthrough=[]), watch, force=False)
+    assert verdict.refusal is not None and "another station is driving it: station sysid 42" in verdict.refusal

@@ -70,17 +70,16 @@ failsafe disarms without it). Its stop leaves GUIDED for MANUAL, then does the s
 sets back the mode it found.
 
 Before sending anything it watches the link for 3 s of vehicle time and refuses (unless --force) a vehicle that is
-not ArduSub on a submarine, is armed, is driven by another station (RC overrides, a joystick off centre) or whose
-RC input is changing; outputs found on passthrough are taken as abandoned only when none of that holds. A pilot
-station whose joystick rests on the GCS sysid (QGroundControl, Cockpit) is made to coexist: the run takes the GCS
-role with a sysid of its own (MAV_GCS_SYSID / SYSID_MYGCS set for the run, restored on exit). While flying, a
-joystick moved off centre, another station's RC overrides, RC input the run did not send or a mode changed by
-someone else hand the vehicle over: neutral, overrides released, SERVO1..8_FUNCTION back to the motors, the GCS
+not ArduSub on a submarine, is armed, is driven by another station (RC overrides, motor tests, a joystick off
+centre) or whose RC input is changing; outputs found on passthrough are taken as abandoned only when none of that
+holds. A pilot station whose joystick rests on the GCS sysid (QGroundControl, Cockpit) is made to coexist: the run
+takes the GCS role with a sysid of its own (MAV_GCS_SYSID / SYSID_MYGCS set for the run, restored on exit). While
+flying, a joystick moved off centre, another station's RC overrides, RC input the run did not send or a mode changed
+by someone else hand the vehicle over: neutral, overrides released, SERVO1..8_FUNCTION back to the motors, the GCS
 sysid restored, left armed for the pilot (exit status 3). Then ATTITUDE and LOCAL_POSITION_NED must arrive at the
-control rate (sent by the vehicle at 80 % of it, arriving at 50 % or more: a 30 % loss is flown through).
-Safety while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout
--> abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster.
-"""
+control rate (sent by the vehicle at 80 % of it, arriving at 50 % or more: a 30 % loss is flown through). Safety
+while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout ->
+abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster. """
 
 EPILOG = """\
 examples:

@@ -620,7 +620,7 @@ class Runner:
         if moving := stations.pilots_moving(self.flying_since):
             raise PilotTakeover(f"pilot takeover: {moving[0].describe()}", moving[0].deflected_at, moving[0])
         if overriding := stations.overriding(self.flying_since):
-            raise PilotTakeover(f"another station took over the RC input: {overriding[0].describe()}",
+            raise PilotTakeover(f"another station took over the thrusters: {overriding[0].describe()}",
                                 overriding[0].last_drive, overriding[0])
         if self.saved_gcs is None and (joysticks := stations.joysticks(self.flying_since, s.sysid)):
             raise PilotTakeover(f"a pilot station on our GCS sysid started sending MANUAL_CONTROL, which ArduSub "

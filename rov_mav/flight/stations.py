@@ -6,6 +6,7 @@ On a real BlueROV2 the pilot's QGroundControl or Cockpit is connected the whole 
 heartbeats and, with a joystick, MANUAL_CONTROL at about 25 Hz. ArduSub 4.5 (ArduSub/GCS_Mavlink.cpp, MANUAL_CONTROL
 and RC_CHANNELS_OVERRIDE handling) applies both only from its GCS sysid, and `Sub::transform_manual_control_to_rc_
 override` (ArduSub/joystick.cpp) writes them over RC channels 1-11 - the eight thrusters on RCIN passthrough.
+MAV_CMD_DO_MOTOR_TEST it takes from any sysid (ArduSub/motors.cpp): a station sending it drives the thrusters too.
 Pure: no I/O; times are vehicle seconds.
 """
 
@@ -23,6 +24,7 @@ ECHO_TOLERANCE = 1           # us between an override we sent and the RC input t
 ECHO_MEMORY = 512            # overrides remembered (>= 5 vehicle s at 50 Hz plus the held resends)
 ECHO_MISSES = 2              # consecutive RC_CHANNELS reports unlike anything we sent: someone else writes RC
 UINT16_MAX = 65535
+DO_MOTOR_TEST = 209          # MAV_CMD_DO_MOTOR_TEST
 
 
 @dataclass
@@ -34,7 +36,8 @@ class Station:
     heartbeats: int = 0
     manual_control: int = 0
     overrides: int = 0
-    last_drive: float = -np.inf          # vehicle s of its last MANUAL_CONTROL or effective RC override
+    motor_tests: int = 0
+    last_drive: float = -np.inf          # vehicle s of its last MANUAL_CONTROL, effective RC override or motor test
     stick: tuple[int, int, int, int] | None = None    # (x, y, z, r) of its last MANUAL_CONTROL
     deflected_at: float | None = None    # vehicle s its joystick was last beyond the dead band
 
@@ -46,6 +49,8 @@ class Station:
             what.append(f"MANUAL_CONTROL x {self.manual_control}, joystick {state} (x={x}, y={y}, z={z}, r={r})")
         if self.overrides:
             what.append(f"RC_CHANNELS_OVERRIDE x {self.overrides}")
+        if self.motor_tests:
+            what.append(f"MAV_CMD_DO_MOTOR_TEST x {self.motor_tests}")
         if self.heartbeats and not what:
             what.append("heartbeats only")
         return f"station sysid {self.sysid} component {self.compid} ({'; '.join(what)})"
@@ -73,7 +78,7 @@ class StationWatch:
     def observe(self, msg, t: float) -> None:
         """One message that is neither from the vehicle nor ours, at vehicle time t."""
         kind = msg.get_type()
-        if kind not in ("HEARTBEAT", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE"):
+        if kind not in ("HEARTBEAT", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE", "COMMAND_LONG", "COMMAND_INT"):
             return
         key = (msg.get_srcSystem(), msg.get_srcComponent())
         station = self.stations.setdefault(key, Station(*key))
@@ -89,13 +94,18 @@ class StationWatch:
                 overrides_anything([getattr(msg, f"chan{i}_raw") for i in range(1, 19)]):
             station.overrides += 1
             station.last_drive = t
+        elif kind in ("COMMAND_LONG", "COMMAND_INT") and msg.command == DO_MOTOR_TEST and \
+                msg.target_system in (0, self.vehicle_sysid):
+            station.motor_tests += 1
+            station.last_drive = t
 
     def drivers(self, since: float) -> list[Station]:
-        """Stations that sent MANUAL_CONTROL or an effective RC override at or after `since`."""
+        """Stations that sent MANUAL_CONTROL, an effective RC override or a motor test at or after `since`."""
         return [s for s in self.stations.values() if s.last_drive >= since]
 
     def overriding(self, since: float) -> list[Station]:
-        return [s for s in self.drivers(since) if s.overrides]
+        """Drivers writing the outputs themselves: RC overrides or motor tests."""
+        return [s for s in self.drivers(since) if s.overrides or s.motor_tests]
 
     def pilots_moving(self, since: float) -> list[Station]:
         """Stations whose joystick was beyond the dead band at or after `since`."""
