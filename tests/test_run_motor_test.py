@@ -75,8 +75,10 @@ def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(
     review = review_dive(log / "mavlink.tlog", load_mission(first)).metrics
     loop = review["loop"]
     assert loop["source"].startswith("MAV_CMD_DO_MOTOR_TEST from sysid")
-    assert result["loop"]["ticks"] <= loop["ticks"] <= result["loop"]["ticks"] + 100   # and the stop's neutral
-    assert loop["latency_p50_ms"] == pytest.approx(result["loop"]["latency_p50_ms"], abs=0.5)
+    # Every tick's eight commands are there, and more: the held PWMs resent when a tick comes late (a loaded
+    # machine) and the stop's neutral. So the first command after a state is the tick's or an earlier resend.
+    assert loop["ticks"] >= result["loop"]["ticks"]
+    assert loop["latency_p50_ms"] <= result["loop"]["latency_p50_ms"] + 0.5
     assert review["saturation"]["commands"]["samples"] == loop["ticks"]
     assert "SERVO1..8_FUNCTION set" not in run.output and "restored SERVO" not in run.output
     assert "disarmed (confirmed by HEARTBEAT)" in run.output and "motor test no longer sent" in run.output
