@@ -205,7 +205,7 @@ class DiveRecorder:
         """A DO_MOTOR_TEST with a PWM for output param1 (0-based, as ArduSub's board order): the station's eight
         PWMs are a row once its command for the last output arrives (a rov-mav run sends outputs 1..8 in a row)."""
         output = int(msg.param1) if math.isfinite(msg.param1) else -1
-        if int(msg.param2) != MOTOR_TEST_PWM or not 0 <= output < CHANNELS:
+        if msg.param2 != MOTOR_TEST_PWM or not 0 <= output < CHANNELS:
             return
         pwm = self._test_pwm.setdefault(sysid, np.full(CHANNELS, float(NEUTRAL)))
         pwm[output] = msg.param3
