@@ -94,6 +94,12 @@ class RunnerProcess:
         self.proc.wait()
 
 
+def runner_against(bridge, mission, *args: str) -> RunnerProcess:
+    """`rov-mav run MISSION ARGS` against a bridge process's port (a long heartbeat wait: the bridge may still boot)."""
+    return RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--heartbeat-timeout", "60",
+                         *args)
+
+
 def bridge_with_checker(workdir: Path, *args: str, speedup: float = SPEEDUP) -> tuple[BridgeProcess, int]:
     """A bridge at `speedup` listening on two ports: BridgeProcess.port for the runner, the other for a checker."""
     checker_port = free_port()

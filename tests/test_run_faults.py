@@ -19,22 +19,18 @@ from run_helpers import (
     checker,
     free_port,
     servo_functions,
+    runner_against,
     servo_outputs,
     short_mission,
 )
 from test_bridge_gcs import Gcs, mavutil
 
 
-def _runner(bridge, mission, *args: str) -> RunnerProcess:
-    return RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--heartbeat-timeout", "60",
-                         *args)
-
-
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):
     mission = short_mission(tmp_path, goto_x=6.0)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
-    with _runner(bridge, mission) as run, bridge:
+    with runner_against(bridge, mission) as run, bridge:
         gcs = checker(checker_port)
         try:
             run.wait_for("armed in MANUAL")
@@ -52,7 +48,7 @@ def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):
 def _aborted_and_left_safe(tmp_path, mission, bridge_args: tuple[str, ...], *runner_args: str) -> str:
     """Run against a bridge started with `bridge_args`; the run must abort (exit 1) and leave the vehicle safe."""
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", *bridge_args)
-    with _runner(bridge, mission, *runner_args) as run, bridge:
+    with runner_against(bridge, mission, *runner_args) as run, bridge:
         gcs = checker(checker_port)
         try:
             assert run.wait() == 1, run.output
@@ -74,7 +70,7 @@ def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
     mission = short_mission(tmp_path, goto_x=6.0)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
     with bridge:
-        with _runner(bridge, mission) as run:
+        with runner_against(bridge, mission) as run:
             run.wait_for("armed in MANUAL")
             time.sleep(0.5)
             bridge.proc.send_signal(signal.SIGSTOP)                # the vehicle stops answering
@@ -87,7 +83,7 @@ def test_a_lost_link_is_reported_plainly_and_the_next_run_recovers(tmp_path):
         gcs = checker(checker_port)
         try:
             assert servo_functions(gcs) == list(range(51, 59))    # not restored: the runner said so
-            with _runner(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0)) as rerun:
+            with runner_against(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0)) as rerun:
                 assert rerun.wait() == 0, rerun.output
             assert_left_safe(gcs)
         finally:
@@ -99,7 +95,7 @@ def test_dry_run_changes_nothing_on_the_vehicle(tmp_path):
     mission = short_mission(tmp_path, goto_x=2.0, hold=1.0)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1")
     rc_seen: list[list[int]] = []
-    with _runner(bridge, mission, "--dry-run", "--log", str(tmp_path / "log")) as run, bridge:
+    with runner_against(bridge, mission, "--dry-run", "--log", str(tmp_path / "log")) as run, bridge:
         gcs = checker(checker_port)
         stop = threading.Event()
 
@@ -136,7 +132,7 @@ def test_a_vehicle_armed_by_someone_else_is_refused(tmp_path):
         gcs = checker(checker_port)
         try:
             assert gcs.command(mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == 0
-            with _runner(bridge, mission) as run:
+            with runner_against(bridge, mission) as run:
                 assert run.wait() == 1, run.output
             assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))
         finally:
@@ -201,7 +197,7 @@ def test_outputs_left_on_passthrough_are_made_neutral_before_anything_else(tmp_p
             while servo_outputs(gcs)[:6] != [1500] * 6 and time.monotonic() < deadline:
                 time.sleep(0.1)                                          # pilot-input failsafe: 1-6 neutral
             assert servo_outputs(gcs) == [1500] * 6 + [1600, 1400]      # 7 and 8 still driving
-            with _runner(bridge, mission) as run:
+            with runner_against(bridge, mission) as run:
                 assert run.wait() == 0, run.output
             assert_left_safe(gcs)
         finally:

@@ -15,29 +15,26 @@ import time
 import pytest
 from run_helpers import (
     WAIT,
-    RunnerProcess,
     armed,
     assert_left_safe,
     bridge_with_checker,
     checker,
     fresh,
     servo_functions,
+    runner_against,
     servo_outputs,
     short_mission,
 )
 
 from rov_mav import cli
+from rov_mav.flight.link import mavlink
 from rov_mav.mission.missions import load_mission
+from rov_mav.review.dive import DiveRecorder
 from rov_mav.review.dive_review import review_dive
 
 SPEEDUP = 3.0
 MOTORS = list(range(33, 41))         # SERVOn_FUNCTION of motors 1..8
 PASSTHROUGH = list(range(51, 59))    # ... of RCIN1..8
-
-
-def _runner(bridge, mission, *args: str) -> RunnerProcess:
-    return RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--heartbeat-timeout", "60",
-                         *args)
 
 
 def _flying(gcs, functions: list[int]) -> None:
@@ -59,12 +56,12 @@ def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(
     with bridge:
         gcs = checker(checker_port, speedup=SPEEDUP)
         try:
-            with _runner(bridge, first, "--output", "motor-test", "--metrics", str(metrics), "--log", str(log)) as run:
+            with runner_against(bridge, first, "--output", "motor-test", "--metrics", str(metrics), "--log", str(log)) as run:
                 run.wait_for("the thrusters through ArduSub's motor test")
                 _flying(gcs, MOTORS)
                 assert run.wait() == 0, run.output
             assert_left_safe(gcs)
-            with _runner(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0), "--output", "motor-test") as rerun:
+            with runner_against(bridge, short_mission(tmp_path, goto_x=0.4, hold=1.0), "--output", "motor-test") as rerun:
                 assert rerun.wait() == 0, rerun.output
             assert_left_safe(gcs)
             assert fresh(gcs, "HEARTBEAT").custom_mode == 19
@@ -92,7 +89,7 @@ def test_a_run_killed_outright(tmp_path, output):
     passthrough, still hold the dead run's last PWM."""
     mission = short_mission(tmp_path, goto_x=6.0)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=SPEEDUP)
-    with _runner(bridge, mission, "--output", output) as run, bridge:
+    with runner_against(bridge, mission, "--output", output) as run, bridge:
         gcs = checker(checker_port, speedup=SPEEDUP)
         try:
             run.wait_for("armed in MANUAL")
@@ -120,3 +117,30 @@ def test_motor_test_is_for_a_law_of_ours(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--output motor-test carries a law's PWMs" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.yaml"]
+
+
+def _from(sysid: int, msg):
+    """`msg` as it arrives from `sysid` (packed and parsed: the source is in the header)."""
+    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=190)
+    return mav.decode(bytearray(msg.pack(mav)))
+
+
+def test_a_review_reads_motor_tests_as_rows_and_skips_what_ardusub_would_not_apply():
+    """A log's DO_MOTOR_TEST: a row of eight PWMs at each command for output 8; a command with a throttle type other
+    than PWM (NaN included, as a damaged log may hold) or an output outside 0..7 changes nothing, and breaks nothing."""
+    recorder = DiveRecorder()
+    recorder.take(0.0, _from(1, mavlink.MAVLink_heartbeat_message(12, 3, 81, 19, 3, 3)))
+
+    def test(wall, output, throttle_type, pwm):
+        recorder.take(wall, _from(255, mavlink.MAVLink_command_long_message(1, 1, 209, 0, output, throttle_type, pwm,
+                                                                             0.5, 0, 2, 0)))
+    for output in range(8):
+        test(1.0, output, 1, 1500 + 10 * output)
+    test(1.1, 0, float("nan"), 1900)
+    test(1.1, 1, 0, 1900)
+    test(1.1, float("nan"), 1, 1900)
+    test(1.1, 8, 1, 1900)
+    test(1.2, 7, 1, 1600)
+    wall, pwm = recorder.finish().motor_tests[255]
+    assert list(wall) == [1.0, 1.2]
+    assert pwm.tolist() == [[1500 + 10 * i for i in range(8)], [1500 + 10 * i for i in range(7)] + [1600]]

@@ -37,6 +37,7 @@ def progress_bar(**options):
 
     return tqdm(file=sys.stderr, mininterval=0.1 if sys.stderr.isatty() else LOG_PROGRESS_INTERVAL_S, **options)
 
+
 def add_plan_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("QGroundControl plans and vehicle missions")
     group.add_argument("--origin", type=lat_lon, metavar="LAT,LON",

@@ -79,7 +79,8 @@ by someone else hand the vehicle over: neutral, overrides released, SERVO1..8_FU
 sysid restored, left armed for the pilot (exit status 3). Then ATTITUDE and LOCAL_POSITION_NED must arrive at the
 control rate (sent by the vehicle at 80 % of it, arriving at 50 % or more: a 30 % loss is flown through). Safety
 while flying: telemetry older than 3 control periods -> neutral until it returns; older than --link-timeout ->
-abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster. """
+abort. Limits (the mission's `limits:` block, or the flags): depth, tracking error, thrust per thruster.
+"""
 
 EPILOG = """\
 examples:
@@ -234,7 +235,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.guided import GuidedStream
     from rov_mav.flight.link import LinkError, Session
     from rov_mav.flight.runlog import RunLog
-    from rov_mav.flight.runner import Limits, Runner, RunOptions, warm_up
+    from rov_mav.flight.runner import THRUSTERS, Limits, Runner, RunOptions, warm_up
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics
     from rov_mav.model.vehicle import load_vehicle
@@ -253,7 +254,7 @@ def main(args: argparse.Namespace) -> int:
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
-    if guided and args.output != "thrusters":
+    if guided and args.output != THRUSTERS:
         print(f"rov-mav run: error: --output {args.output} carries a law's PWMs; --controller {GUIDED_KIND} flies on "
               "ArduSub's own mixer", file=sys.stderr)
         return 2

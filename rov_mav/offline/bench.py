@@ -214,14 +214,13 @@ def summarize(runs: Sequence[RunFigures]) -> list[Summary]:
         keys.setdefault((run.controller, run.mission, ALL_GROUPS), []).append(run)
     out = []
     for (controller, mission, group), members in keys.items():
-        failures = sum(not r.completed for r in members)
-        figures = {}
-        for f in FIGURES:
-            by_tune: dict[int, list[float]] = {r.tune: [] for r in members}
-            for r in members:
-                if r.completed:
-                    by_tune[r.tune].append(getattr(r, f))
-            figures[f] = tune_interval(by_tune)
+        done: dict[int, list[RunFigures]] = {r.tune: [] for r in members}
+        for r in members:
+            if r.completed:
+                done[r.tune].append(r)
+        figures = {f: tune_interval({tune: [getattr(r, f) for r in runs] for tune, runs in done.items()})
+                   for f in FIGURES}
+        failures = len(members) - sum(map(len, done.values()))
         out.append(Summary(controller, mission, group, len(members), failures, figures))
     return out
 
