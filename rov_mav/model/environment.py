@@ -25,10 +25,13 @@ class NoiseSchema(config.StrictModel):
 
 
 class TelemetrySchema(config.StrictModel):
-    """How the controller sees the state offline: sampled at `rate` and `delay` late (a 5-10 Hz MAVLink stream)."""
+    """How the controller sees the state offline: sampled at `rate` and `delay` late (a 5-10 Hz MAVLink stream), and
+    whether it predicts that late state forward to now through its model and the wrenches it commanded since (as
+    `rov-mav run` does unless --predict off)."""
 
     rate: Annotated[float, Field(ge=0, le=1000)] = 0.0   # Hz; 0 = every control tick
     delay: Annotated[float, Field(ge=0, le=5)] = 0.0     # s, from the sample to the controller
+    predict: bool = True
 
 
 class EnvironmentSchema(config.StrictModel):
@@ -60,6 +63,7 @@ class Environment:
     current: np.ndarray = field(default_factory=lambda: np.zeros(3))
     noise: np.ndarray = field(default_factory=lambda: np.zeros(4))   # position, attitude, velocity, rate
     telemetry: np.ndarray = field(default_factory=lambda: np.zeros(2))   # sample period (s, 0 = every tick), delay (s)
+    predict: bool = True        # the controller predicts its late measurement forward
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":
@@ -70,6 +74,7 @@ class Environment:
             current=np.array(s.current, dtype=float),
             noise=np.array([s.noise.position, s.noise.attitude, s.noise.velocity, s.noise.rate]),
             telemetry=np.array([1.0 / s.telemetry.rate if s.telemetry.rate > 0 else 0.0, s.telemetry.delay]),
+            predict=s.telemetry.predict,
         )
 
     @property
@@ -89,6 +94,7 @@ class Environment:
         out[kernel.E_NOISE:kernel.E_NOISE + 4] = self.noise
         out[kernel.E_SAMPLE_PERIOD] = self.telemetry[0]
         out[kernel.E_SAMPLE_DELAY] = self.telemetry[1]
+        out[kernel.E_PREDICT] = float(self.predict)
         return out
 
 

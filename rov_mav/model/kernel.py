@@ -32,7 +32,8 @@ P_SIZE = 92
 
 # Packed environment vector: constant disturbance (6), sinusoid amplitude (6), sinusoid period (1),
 # NED current (3), sensor noise std for position, attitude, linear velocity, angular rate (4), telemetry sample
-# period and delay (2, s; 0 = the controller measures every tick, without delay).
+# period and delay (2, s; 0 = the controller measures every tick, without delay), and whether the controller
+# predicts its late measurement forward (1) or acts on it as it is (0).
 E_DIST = 0
 E_AMP = 6
 E_PERIOD = 12
@@ -40,7 +41,8 @@ E_CURRENT = 13
 E_NOISE = 16
 E_SAMPLE_PERIOD = 20
 E_SAMPLE_DELAY = 21
-E_SIZE = 22
+E_PREDICT = 22
+E_SIZE = 23
 
 # Floating-point licences for the compiled code: fused multiply-add and reassociation, but NaN and inf keep their
 # meaning (the divergence check relies on them).
@@ -203,15 +205,6 @@ def derivative_at(m, x, trig, tau, current_ned, dx):
         dx[6 + i] = m[b] * f0 + m[b + 1] * f1 + m[b + 2] * f2 + m[b + 3] * f3 + m[b + 4] * f4 + m[b + 5] * f5
 
 
-@compiled
-def disturbance(env, t, tau, out):
-    """out = tau + tau_d(t), tau_d a constant plus a sinusoid per DOF (body frame, N and N m)."""
-    period = env[E_PERIOD]
-    phase = math.sin(2.0 * math.pi * t / period) if period > 0.0 else 0.0
-    for i in range(6):
-        out[i] = tau[i] + env[E_DIST + i] + env[E_AMP + i] * phase
-
-
 # Steps an attitude's sines and cosines are carried from step to step before they are computed afresh: bounds the
 # rounding they gather (about one unit in the last place a step).
 TRIG_REFRESH = 64
@@ -228,6 +221,44 @@ def carried_trig(x, ws):
     return attitude_trig(x)
 
 
+@inlined
+def disturbed(env, t, tau):
+    """tau + tau_d(t) as a 6-tuple, tau_d a constant plus a sinusoid per DOF (body frame, N and N m)."""
+    period = env[E_PERIOD]
+    phase = math.sin(2.0 * math.pi * t / period) if period > 0.0 else 0.0
+    return (tau[0] + env[E_DIST] + env[E_AMP] * phase, tau[1] + env[E_DIST + 1] + env[E_AMP + 1] * phase,
+            tau[2] + env[E_DIST + 2] + env[E_AMP + 2] * phase, tau[3] + env[E_DIST + 3] + env[E_AMP + 3] * phase,
+            tau[4] + env[E_DIST + 4] + env[E_AMP + 4] * phase, tau[5] + env[E_DIST + 5] + env[E_AMP + 5] * phase)
+
+
+@inlined
+def rk4_stages(m, x, trig, w_start, w_mid, w_end, current, h, ws):
+    """One classic RK4 step of h seconds of the state x (12,), in place, for a wrench that is w_start at the step's
+    start, w_mid at its middle and w_end at its end (the RK4 of a time-varying input); trig = attitude_trig(x).
+    The stages' sines and cosines are turned by their small angle increments (`stage_trig`). Returns
+    attitude_trig of the new x, turned the same way. ws: scratch (60,)."""
+    k1 = ws[0:12]
+    k2 = ws[12:24]
+    k3 = ws[24:36]
+    k4 = ws[36:48]
+    xs = ws[48:60]
+    derivative_at(m, x, trig, w_start, current, k1)
+    for i in range(12):
+        xs[i] = x[i] + 0.5 * h * k1[i]
+    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k1), w_mid, current, k2)
+    for i in range(12):
+        xs[i] = x[i] + 0.5 * h * k2[i]
+    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k2), w_mid, current, k3)
+    for i in range(12):
+        xs[i] = x[i] + h * k3[i]
+    derivative_at(m, xs, stage_trig(trig, xs, h, k3), w_end, current, k4)
+    for i in range(12):
+        before = x[i]
+        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        xs[i] = x[i] - before          # the step's increment (exact for close values, Sterbenz)
+    return stage_trig(trig, x, 1.0, xs)
+
+
 @compiled
 def rk4_step(m, env, x, tau, t, h, ws):
     """Advance the plant state x (12,) in place by h seconds with the control wrench tau held (classic RK4).
@@ -236,33 +267,86 @@ def rk4_step(m, env, x, tau, t, h, ws):
     each stage's small angle increment (`stage_trig`) and on to the next step's attitude (`carried_trig`), computed
     afresh every TRIG_REFRESH steps or when x's attitude is not the one this left. ws: workspace (80,), zeroed before
     a first step."""
-    k1 = ws[0:12]
-    k2 = ws[12:24]
-    k3 = ws[24:36]
-    k4 = ws[36:48]
-    xs = ws[48:60]
-    total = ws[60:66]
-    current = env[E_CURRENT:E_CURRENT + 3]
     trig = carried_trig(x, ws)
-    disturbance(env, t, tau, total)
-    derivative_at(m, x, trig, total, current, k1)
-    disturbance(env, t + 0.5 * h, tau, total)
+    current = env[E_CURRENT:E_CURRENT + 3]
+    trig = rk4_stages(m, x, trig, disturbed(env, t, tau), disturbed(env, t + 0.5 * h, tau),
+                      disturbed(env, t + h, tau), current, h, ws)
+    ws[66], ws[67], ws[68] = x[3], x[4], x[5]
+    ws[69], ws[70], ws[71], ws[72], ws[73], ws[74] = trig
+
+
+# s: the longest RK4 step of a prediction (the model's fastest motions, roll and pitch, take seconds).
+PREDICT_STEP = 0.1
+# s: the time constant of the prediction's disturbance estimate (`observe_disturbance`): long enough to average the
+# velocity noise of many samples, short against a 6 s wave.
+OBSERVER_TIME = 1.0
+STILL_WATER = (0.0, 0.0, 0.0)
+
+
+@inlined
+def mean_wrench(ring, newest, slot, late, early, d):
+    """The mean of the commanded wrench between `late` and `early` s (late < early) before a prediction's instant,
+    plus d (6,): ring (R, 6) circular, ring[newest] the wrench over the last `slot` s, each entry held for its slot
+    (the oldest entry holds before it). 6-tuple."""
+    size = ring.shape[0]
+    w0 = w1 = w2 = w3 = w4 = w5 = 0.0
+    first = int(late / slot)
+    j = first
+    while True:
+        lo = max(late, j * slot)
+        hi = early if j >= size - 1 else min(early, (j + 1) * slot)
+        if hi > lo:
+            span = hi - lo
+            row = ring[(newest - j) % size]
+            w0 += row[0] * span
+            w1 += row[1] * span
+            w2 += row[2] * span
+            w3 += row[3] * span
+            w4 += row[4] * span
+            w5 += row[5] * span
+        if hi >= early:
+            break
+        j += 1
+    k = 1.0 / (early - late)
+    return (w0 * k + d[0], w1 * k + d[1], w2 * k + d[2], w3 * k + d[3], w4 * k + d[4], w5 * k + d[5])
+
+
+@inlined
+def predict(m, x, trig, ring, newest, slot, horizon, d_hat, out, ws):
+    """The state `horizon` s after the measured x (12,) (trig = attitude_trig(x)), through the controller's model m
+    in still water, under the wrenches commanded since plus the estimated disturbance d_hat (6,, body frame): ring
+    (R, 6) is circular, ring[newest] the wrench that acts over the last `slot` s before the prediction's instant,
+    ring[newest - 1] the slot before, and so on. RK4 steps of at most PREDICT_STEP under the mean wrench of their span
+    (the velocity change each step is then exact in the wrench, however often the commands changed). Writes out
+    (12,); returns attitude_trig(out). Horizon 0: out = x. ws: scratch (60,)."""
     for i in range(12):
-        xs[i] = x[i] + 0.5 * h * k1[i]
-    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k1), total, current, k2)
-    for i in range(12):
-        xs[i] = x[i] + 0.5 * h * k2[i]
-    derivative_at(m, xs, stage_trig(trig, xs, 0.5 * h, k2), total, current, k3)
-    disturbance(env, t + h, tau, total)
-    for i in range(12):
-        xs[i] = x[i] + h * k3[i]
-    derivative_at(m, xs, stage_trig(trig, xs, h, k3), total, current, k4)
-    for i in range(12):
-        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    for i in range(3):
-        xs[3 + i] = x[3 + i] - ws[66 + i]   # the attitude's increment (exact for close values, Sterbenz)
-        ws[66 + i] = x[3 + i]
-    ws[69], ws[70], ws[71], ws[72], ws[73], ws[74] = stage_trig(trig, x, 1.0, xs)
+        out[i] = x[i]
+    if horizon <= 0.0:
+        return trig
+    n = int(math.ceil(horizon / PREDICT_STEP))
+    h = horizon / n
+    for j in range(n):
+        w = mean_wrench(ring, newest, slot, max(horizon - (j + 1) * h, 0.0), horizon - j * h, d_hat)
+        trig = rk4_stages(m, out, trig, w, w, w, STILL_WATER, h, ws)
+    return trig
+
+
+@inlined
+def observe_disturbance(m, x_prev, trig_prev, ring, newest, slot, interval, x_new, d_hat, ws):
+    """The disturbance the prediction adds, learnt from each new measurement: the model carries the previous
+    measurement x_prev over the `interval` s to the new one's time under the wrenches commanded then (ring[newest]
+    the last of them) and d_hat; what the new measured velocity x_new[6:12] differs by is a wrench
+    M (nu_new - nu_model) / interval, of which interval / OBSERVER_TIME (at most half) is added to d_hat (in place): a
+    first-order filter of time constant OBSERVER_TIME, whatever the sample rate. Without it, a steady
+    disturbance would bias every prediction by M^-1 tau_d times the horizon. ws: scratch (72,)."""
+    if interval <= 0.0:
+        return
+    model = ws[60:72]
+    predict(m, x_prev, trig_prev, ring, newest, slot, interval, d_hat, model, ws[0:60])
+    k = min(interval / OBSERVER_TIME, 0.5) / interval
+    for i in range(6):
+        d_hat[i] += k * mass_row(m, i, x_new[6] - model[6], x_new[7] - model[7], x_new[8] - model[8],
+                                 x_new[9] - model[9], x_new[10] - model[10], x_new[11] - model[11])
 
 
 @compiled

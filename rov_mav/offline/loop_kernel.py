@@ -12,11 +12,14 @@ from numba import njit
 from rov_mav.control.law_kernel import STATE_SIZE, controller_step
 from rov_mav.model.kernel import (
     E_NOISE,
+    E_PREDICT,
     E_SAMPLE_DELAY,
     E_SAMPLE_PERIOD,
     FAST,
     compiled_loop,
     inlined,
+    observe_disturbance,
+    predict,
     rk4_step,
     trig_near,
     wrap_angle,
@@ -94,11 +97,12 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 @compiled_loop
 def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x, seed, cost_weights, tau_ff, tau_max,
-         tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, state, ws):
+         tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, commanded, state, ws):
     """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed; the logs
     (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
-    telemetry delay; only the ticks telemetry delivers are measured); state: the controller's, zeroed; ws: zeroed
-    workspace (134,). Returns (cost, steps done)."""
+    telemetry delay; only the ticks telemetry delivers are measured); commanded: (R, 6) ring of the wrenches applied
+    since, R > the oldest measurement's age in ticks (for the prediction); state: the controller's, zeroed; ws: zeroed
+    workspace (248,). Returns (cost, steps done)."""
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[0] > 0
     h = dt / substeps
@@ -114,6 +118,16 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
     grad = ws[116:122]
     gamma = ws[122:128]
     trig_m = ws[128:134]   # attitude_trig(eta_m), computed when a sample arrives
+    x_m = ws[134:146]      # the measurement held, as a state
+    x_p = ws[146:158]      # ... predicted to this tick
+    x_prev = ws[158:170]   # the measurement held before
+    d_hat = ws[170:176]    # the prediction's disturbance estimate
+    ws_predict = ws[176:248]
+    eta_p = x_p[0:6]
+    nu_p = x_p[6:12]
+    forward = env[E_PREDICT] != 0.0
+    held_at = 0       # the tick the held measurement was taken at
+    newest = commanded.shape[0] - 1   # commanded[newest]: the wrench applied over the last tick
     noise = env[E_NOISE:E_NOISE + 4]
     total = 0.0
     rng = np.uint64(seed)
@@ -125,13 +139,27 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
         sampled = k - late
         if k == 0 or (sampled >= 0 and (every == 1 or sampled % every == 0)):
             held = measured[slot if sampled >= 0 else 0]
+            trig = (trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5])
+            for i in range(12):
+                x_prev[i] = x_m[i]
+                x_m[i] = held[i]
             for i in range(6):
                 eta_m[i] = held[i]
                 nu_m[i] = held[6 + i]
+            if forward and sampled > held_at:   # what the model missed since the last measurement
+                observe_disturbance(ctrl, x_prev, trig, commanded, newest - late, dt, (sampled - held_at) * dt, x_m,
+                                    d_hat, ws_predict)
+            held_at = max(sampled, 0)
             trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5] = trig_near(eta_m, x, ws_plant)
         trig = (trig_m[0], trig_m[1], trig_m[2], trig_m[3], trig_m[4], trig_m[5])
-        controller_step(kind, ctrl, params, table, table_scale, eta_m, trig, nu_m, ref[k], dt, state, tau, tau_hat, s,
-                        grad, gamma)
+        if forward and k > held_at:
+            trig = predict(ctrl, x_m, trig, commanded, newest, dt, (k - held_at) * dt, d_hat, x_p,
+                           ws_predict[0:60])
+            controller_step(kind, ctrl, params, table, table_scale, eta_p, trig, nu_p, ref[k], dt, state, tau, tau_hat,
+                            s, grad, gamma)
+        else:
+            controller_step(kind, ctrl, params, table, table_scale, eta_m, trig, nu_m, ref[k], dt, state, tau,
+                            tau_hat, s, grad, gamma)
         if record:
             for i in range(6):
                 eta_log[k, i] = x[i]
@@ -145,8 +173,10 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
         if _saturated(tau, tau_max):
             return DIVERGED_COST, k
         total += _running_cost(cost_weights, s, x, ref[k], tau, tau_ff[k]) * dt
+        newest = newest + 1 if newest < commanded.shape[0] - 1 else 0
         for i in range(6):
             applied[i] = min(max(tau[i], -tau_limit[i]), tau_limit[i])
+            commanded[newest, i] = applied[i]
         for j in range(substeps):
             rk4_step(plant, env, x, applied, k * dt + j * h, h, ws_plant)
         if _diverged(x):
@@ -165,6 +195,8 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
     sensor noise. The controller sees the measured state (true state plus the environment's sensor noise, drawn for
     each tick whose measurement telemetry delivers) as telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
     the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.
+    Where E_PREDICT is set, the controller acts on the held measurement carried forward to its tick through its own
+    model and the wrenches applied since (`kernel.predict`), as `rov-mav run` predicts its late telemetry.
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
     Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
@@ -176,7 +208,9 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
     Releases the GIL: callers may run disjoint slices of a batch in parallel threads."""
     for b in range(params.shape[0]):
         late = max(0, int(round(env[b, E_SAMPLE_DELAY] / dt)))
+        every = max(1, int(round(env[b, E_SAMPLE_PERIOD] / dt)))
         cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_scale, ref, dt, substeps,
                                       x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
                                       nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
-                                      np.zeros((late + 1, 12)), np.zeros(STATE_SIZE), np.zeros(134))
+                                      np.zeros((late + 1, 12)), np.zeros((late + every + 1, 6)),
+                                      np.zeros(STATE_SIZE), np.zeros(248))
