@@ -15,6 +15,7 @@ from test_bad_input import assert_one_line, files_under, rov_mav
 from test_bridge_gcs import ROV_MAV
 
 from rov_mav import cli
+from rov_mav.flight.prediction import StatePredictor
 from rov_mav.control.controller import Controller, load_settings
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import load_mission
@@ -109,20 +110,29 @@ def test_the_interval_over_tunes_covers_the_laws_mean_and_pooling_the_runs_does_
     assert pooled_covered / 2000 < 0.6
 
 
-def test_the_controller_sees_sampled_delayed_telemetry(vehicle, line):
+@pytest.mark.parametrize("predict", [False, True])
+def test_the_controller_sees_sampled_delayed_telemetry(vehicle, line, predict):
     """10 Hz samples 0.15 s late: the runner's Controller fed, at each tick, the true state of the last sample that
-    has arrived (tick 0's before any) reproduces the batched run's commands exactly; the delay changes the run."""
-    settings = load_settings("fuzzy", "report")   # stateful: its estimate integrates what it was shown; the report's
-    # gains (Eqs. 4.1-4.2) hold this link, the shipped ones (tuned at 50 Hz, 0.04 s late) do not
-    delayed = Environment(disturbance=line.environment.disturbance, telemetry=np.array([0.1, 0.15]))
+    has arrived (tick 0's before any) -- carried forward to the tick by the runner's own StatePredictor, which learns
+    from each new sample and is told each command, when the loop predicts -- reproduces the batched run's commands
+    exactly; the delay changes the run."""
+    settings = load_settings("fuzzy", "report")   # stateful: its estimate integrates what it was shown
+    delayed = Environment(disturbance=line.environment.disturbance, telemetry=np.array([0.1, 0.15]), predict=predict)
     trace = simulate(line, settings, vehicle, environment=delayed, duration=6.0)
     assert trace.completed
     controller = Controller(vehicle, settings)
-    every, late = 10, 15
+    predictor = StatePredictor(controller.model, 0.01)
+    every, late, dt = 10, 15, 0.01
     for k in range(len(trace.t)):
         arrived = max(0, (k - late) // every * every) if k >= late else 0
-        out = controller.step(trace.eta[arrived], trace.nu[arrived], trace.reference[k], 0.01)
+        eta, nu = trace.eta[arrived], trace.nu[arrived]
+        if predict:
+            if k >= late and (k - late) % every == 0:
+                predictor.observe(arrived * dt, eta, nu)
+            eta, nu = predictor.predicted(arrived * dt, eta, nu, k * dt)
+        out = controller.step(eta, nu, trace.reference[k], dt)
         np.testing.assert_allclose(out.tau, trace.tau[k], rtol=0, atol=1e-9, err_msg=f"tick {k}")
+        predictor.commanded(k * dt, out.tau)
     prompt = simulate(line, settings, vehicle, environment=line.environment, duration=6.0)
     assert np.abs(prompt.eta - trace.eta).max() > 1e-3
 

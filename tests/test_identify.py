@@ -296,7 +296,9 @@ def _log_like(source: Path, target: Path, rows: slice | None = None, edit=None) 
 
 
 def _drop_column(lines: list[str]) -> list[str]:
-    return [",".join(line.split(",")[:-1]) for line in lines]
+    """ticks.csv without its battery_voltage column."""
+    gone = lines[0].split(",").index("battery_voltage")
+    return [",".join(v for i, v in enumerate(line.split(",")) if i != gone) for line in lines]
 
 
 def _garble(lines: list[str]) -> list[str]:

@@ -1,9 +1,12 @@
-"""Benchmark: what Rerun logging costs the control loop, side by side with the 20 ms period of a 50 Hz loop.
+"""Benchmark: what Rerun logging and the state prediction cost the control loop, beside a 50 Hz loop's 20 ms period.
 
 1. Rerun's own cost per tick for batches of 1..50 ticks (`send_ticks` into a file), the work the sink's thread does.
 2. A 50 Hz loop paced like the runner's (sleep to the next 20 ms deadline, allocate tau to thrusts and PWMs, hand
    the record to the sinks), without and with the live sink: time inside `log_tick`, the sink thread's CPU time per
    tick, and how late the loop wakes up (does the logging thread delay it?).
+3. A tick's computation from a state to its PWMs, as the runner does it (the law, the allocation, and with
+   `--predict on` the disturbance learnt from the state and the state carried 0.12 s forward), with the prediction
+   on and off in alternating rounds: p50 / p99 / max, the share of the telemetry-in to command-out budget (2 ms).
 Run:
     .venv/bin/python tools/bench_telemetry.py [--seconds 10]
 """
@@ -18,7 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from rov_mav import telemetry
-from rov_mav.control.controller import load_settings
+from rov_mav.control.controller import Controller, load_settings
+from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.prediction import StatePredictor
 from rov_mav.flight.tick import TickRecord
 from rov_mav.mission.missions import load_mission
 from rov_mav.model.thrusters import Allocator, thrusts_to_pwms
@@ -28,6 +33,8 @@ from rov_mav.telemetry.entities import TickColumns, log_static, send_ticks
 
 ROOT = Path(__file__).resolve().parents[1]
 PERIOD = 0.02   # s: 50 Hz
+HORIZON = 0.12  # s: a state's age when its command acts through 50 ms of delay each way
+BUDGET = 0.002  # s: telemetry in to command out, p99 (issue 18's target)
 
 
 def records(n: int) -> list[TickRecord]:
@@ -92,6 +99,33 @@ def loop_costs(ticks: list[TickRecord], folder: Path) -> None:
           f"| {total * 1e3:.3f} ms | {100 * total / PERIOD:.2f} % | {_late(late)} | {s.dropped} |")
 
 
+def tick_costs(ticks: list[TickRecord], rounds: int = 4) -> None:
+    """The runner's tick computation from each recorded state, prediction on and off in alternating rounds."""
+    vehicle = load_vehicle()
+    actuation = Actuation(vehicle, max_thrust=40.0)
+    times: dict[bool, list[float]] = {True: [], False: []}
+    for r in range(2 * rounds):
+        predict = r % 2 == 1
+        controller = Controller(vehicle, load_settings("fuzzy"))
+        predictor = StatePredictor(controller.model, PERIOD)
+        for tick in ticks:
+            start = time.perf_counter()
+            eta, nu, t_act = tick.eta, tick.nu, tick.t + HORIZON
+            if predict:
+                predictor.observe(tick.t, tick.eta, tick.nu)
+                eta, nu = predictor.predicted(tick.t, tick.eta, tick.nu, t_act)
+            out = controller.step(eta, nu, tick.reference, PERIOD)
+            thrusts, _, _ = actuation.command(out.tau)
+            if predict:
+                predictor.commanded(t_act, actuation.allocator.matrix @ thrusts)
+            times[predict].append(time.perf_counter() - start)
+    print(f"\n3. a tick's computation, state -> PWMs ({len(ticks)} ticks x {rounds} rounds each, alternating):")
+    for predict in (False, True):
+        t = np.array(times[predict])
+        print(f"   prediction {'on ' if predict else 'off'}: {_late(t)} (p50 / p99 / max); p99 is "
+              f"{np.percentile(t, 99) / BUDGET:.0%} of the {BUDGET * 1e3:g} ms telemetry-in to command-out budget")
+
+
 def _late(late: np.ndarray) -> str:
     p50, p99 = np.percentile(late, [50, 99]) * 1e3
     return f"{p50:.2f} / {p99:.2f} / {late.max() * 1e3:.2f} ms"
@@ -105,6 +139,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         batch_costs(ticks, Path(tmp))
         loop_costs(ticks, Path(tmp))
+    tick_costs(ticks)
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import socket
 import sys
 from pathlib import Path
@@ -41,6 +42,7 @@ MAX_RATE = 400.0              # Hz: ArduSub's main loop; no telemetry comes fast
 MAX_LINK_TIMEOUT = 60.0       # vehicle s: flying blind longer than this is not a setting
 MAX_BAUD = 10_000_000
 MAX_VELOCITY_BLEND = 50.0     # rad/s: the filter is stepped at the control rate; beyond this it is no filter
+DEFAULT_MAX_TILT_DEG = 15.0   # deg of roll or pitch: a BlueROV2 flies level; beyond this the law has lost it
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -138,6 +140,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                         help="abort when the position error exceeds this")
     limits.add_argument("--max-thrust", type=positive_float, metavar="N",
                         help="cap each thruster's command at this thrust, and abort if the vehicle reports more")
+    limits.add_argument("--max-tilt", type=number(0.0, 89.0, low_open=True), metavar="DEG",
+                        help=f"abort when the roll or pitch exceeds this many degrees (default: the mission's "
+                             f"max_tilt, else {DEFAULT_MAX_TILT_DEG:g})")
     link = p.add_argument_group("link")
     link.add_argument("--sysid", type=sysid, metavar="ID",
                       help="our MAVLink system id, 1 to 255 (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, "
@@ -160,9 +165,17 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pwm-rounding", choices=["diffuse", "nearest"], default="diffuse",
                    help="whole-microsecond PWMs and thruster dead bands: carry what a tick's PWM could not give to the "
                         "next tick, so thrust averages to what was asked (diffuse, default), or round each tick alone")
+    p.add_argument("--predict", choices=["on", "off"], default="on",
+                   help="act on the state predicted to the instant the command reaches the thrusters (on, default: "
+                        "the telemetry's age plus the link's round trip, measured with TIMESYNC, through the law's "
+                        "model and the commands already sent), or on the state as it arrives (off)")
     p.add_argument("--pretension", choices=["on", "off"], default="on",
                    help="add thrust patterns with no net wrench so that every thruster works outside its dead band "
                         "(on, default: small moments without thrusters switching on and off), or not")
+    p.add_argument("--realtime", action="store_true",
+                   help="ask the operating system for real-time scheduling (SCHED_FIFO) and locked memory, so that a "
+                        "busy computer does not stall the loop; says in one line what was refused (it needs root or "
+                        "CAP_SYS_NICE and CAP_IPC_LOCK) and flies on at normal priority")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
@@ -179,25 +192,25 @@ def _free_udp_port() -> int:
 
 
 def _start_bridge(mission, speedup: float, key: bytes | None):
-    """The built-in vehicle in a background thread (its home at the mission's origin when it has one); returns
-    (bridge, connection string for it)."""
+    """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with
+    the loop), its home at the mission's origin when it has one; returns (vehicle, connection string for it)."""
     from rov_mav.flight.link import LinkError
     from sim_bridge.config import DEFAULT_ORIGIN, BridgeConfig
     from sim_bridge.link import LinkError as BridgeLinkError
-    from sim_bridge.server import Bridge
+    from sim_bridge.process import VehicleProcess
 
     port = _free_udp_port()
     origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
-    bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
-                                 environment=mission.environment, start_depth=float(mission.start_pose[2]),
-                                 origin=origin, signing_key=key))
+    vehicle = VehicleProcess(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
+                                          environment=mission.environment, start_depth=float(mission.start_pose[2]),
+                                          origin=origin, signing_key=key))
     try:
-        bridge.start()
+        vehicle.start()
     except BridgeLinkError as exc:
         raise LinkError(f"the built-in vehicle could not start: {exc}") from None
-    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {bridge.params.firmware}) on udp port {port}, "
+    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {vehicle.firmware}) on udp port {port}, "
           f"speedup {speedup:g}", flush=True)
-    return bridge, f"udpout:127.0.0.1:{port}"
+    return vehicle, f"udpout:127.0.0.1:{port}"
 
 
 def _default_recording(mission) -> Path:
@@ -210,9 +223,11 @@ def _limits(args: argparse.Namespace, mission, limits_type):
     lim = mission.limits
     if args.max_depth is not None:
         mission.check_depth(args.max_depth, "--max-depth")
+    tilt = math.radians(args.max_tilt) if args.max_tilt is not None else lim.max_tilt
     return limits_type(max_depth=args.max_depth or lim.max_depth,
                        max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
-                       max_thrust=args.max_thrust or lim.max_thrust)
+                       max_thrust=args.max_thrust or lim.max_thrust,
+                       max_tilt=tilt if tilt is not None else math.radians(DEFAULT_MAX_TILT_DEG))
 
 
 def _from_vehicle(session, args: argparse.Namespace):
@@ -260,6 +275,10 @@ def main(args: argparse.Namespace) -> int:
         return 2
     if mission is not None:
         check_rerun_output(args, _default_recording(mission))
+    if args.realtime:
+        from rov_mav.flight.realtime import ask_realtime
+        granted, line = ask_realtime()
+        print(line, file=sys.stdout if granted else sys.stderr, flush=True)
     bridge, target, session = None, args.target, None
     sinks: list = [StatusLine()]
     rerun_target = rerun = actuation = controller = None
@@ -301,7 +320,8 @@ def main(args: argparse.Namespace) -> int:
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
-                         velocity_blend=args.velocity_blend, output=args.output, limits=limits)
+                         velocity_blend=args.velocity_blend, output=args.output, predict=args.predict == "on",
+                         limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
         if args.log:
@@ -343,6 +363,10 @@ def main(args: argparse.Namespace) -> int:
               f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad")
     print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
           f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms", flush=True)
+    print(f"  delays: round trip {loop['round_trip_ms']:.1f} ms (TIMESYNC); state predicted "
+          + (f"{loop['horizon_p50_ms']:.1f} ms ahead (p50; p99 {loop['horizon_p99_ms']:.1f} ms)" if args.predict == "on"
+             else "not at all (--predict off)")
+          + (f"; this process stalled {loop['stalls']} time(s)" if loop['stalls'] else ""), flush=True)
     print(f"  rerun: {rerun_target.describe()}")
     if rerun is not None:
         print(f"  {rerun.stats.describe(1.0 / args.rate)}")

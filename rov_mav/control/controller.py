@@ -188,7 +188,7 @@ class Controller:
 
     def __init__(self, model: Vehicle, settings: ControllerSettings):
         self.settings = settings
-        self._model = model.packed()
+        self.model = model.packed()      # the packed model the law (and the prediction) use
         self._params = settings.vector
         self._args = settings.kernel_arguments()
         self.state = np.zeros(law_kernel.STATE_SIZE)
@@ -202,7 +202,7 @@ class Controller:
         kind, table, scale = self._args
         tau, tau_hat, s, grad, gamma = (np.zeros(6) for _ in range(5))
         eta = np.asarray(eta, float)
-        law_kernel.controller_step(kind, self._model, self._params, table, scale, eta, kernel.attitude_trig(eta),
+        law_kernel.controller_step(kind, self.model, self._params, table, scale, eta, kernel.attitude_trig(eta),
                                    np.asarray(nu, float), np.asarray(reference, float), float(dt), self.state,
                                    tau, tau_hat, s, grad, gamma)
         return ControlOutput(tau, tau_hat, s, grad, gamma)

@@ -20,12 +20,14 @@ import secrets
 import socket
 import time
 import itertools
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
+from rov_mav.flight.prediction import RoundTrip  # noqa: E402
 from rov_mav.flight.stations import OverrideEcho, StationWatch  # noqa: E402
 from rov_mav.flight.vehicle_clock import VehicleClock  # noqa: E402
 from rov_mav.signing import UNSIGNED_RADIO, VEHICLE_HEARTBEATS, Rejections, advance, check_signature_first  # noqa: E402
@@ -56,6 +58,8 @@ HEARTBEAT_CONFIRM = 2.5         # heartbeat periods to wait for one showing a co
 MAX_CONFIRMATION = 255          # COMMAND_LONG.confirmation: 0 the first time, then +1 per resend
 RECEIVE_BUFFER = 1 << 20         # bytes
 GCS_SYSID_PARAMS = ("MAV_GCS_SYSID", "SYSID_MYGCS")   # ArduSub 4.7+, before 4.7
+TIMESYNC_PERIOD = 0.25          # vehicle s between TIMESYNC requests while flying (the round trip the prediction uses)
+TIMESYNC_KEEP = 32              # requests remembered, to recognise the vehicle's answers to ours
 UNSIGNED_GRACE = 2.0            # wall s of rejected vehicle HEARTBEATs (4 signed hellos sent) before refusing
 
 
@@ -109,6 +113,10 @@ class Session:
         self._wall_last_heartbeat = -1e9
         self._heard = time.monotonic()         # wall s of the vehicle's last message
         self._rtt: float | None = None         # wall s: smoothed round trip of a request
+        self.round_trip = RoundTrip()          # vehicle s: TIMESYNC's round trip, while `timesync` is on
+        self.timesync = False
+        self._next_timesync = 0.0
+        self._timesync_sent: deque[int] = deque(maxlen=TIMESYNC_KEEP)   # our ts1 stamps (perf_counter ns)
         conn.message_hooks.append(self._incoming)
         conn.mav.set_send_callback(self._outgoing)
 
@@ -153,7 +161,7 @@ class Session:
         while time.monotonic() < deadline:
             if time.monotonic() >= next_hello:     # a TIMESYNC, so that a vehicle listening on UDP learns our
                 next_hello = time.monotonic() + 0.5   # address; not a heartbeat, which would arm its GCS failsafe
-                self._send("timesync", 0, time.monotonic_ns())
+                self._send_timesync()
             for msg, _ in self._receive(0.1):
                 if msg.get_type() == "HEARTBEAT" and self.conn.probably_vehicle_heartbeat(msg) \
                         and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:   # not a camera, companion, GCS
@@ -411,6 +419,22 @@ class Session:
             self._send_override(self.override)
         if self.motor_test is not None and now - self._last_motor_test_t >= 1.0 / self.override_rate:
             self._send_motor_test(self.motor_test)
+        if self.timesync and now >= self._next_timesync:
+            self._send_timesync()
+            self._next_timesync = now + TIMESYNC_PERIOD
+
+    def _send_timesync(self) -> None:
+        """A TIMESYNC request stamped with our clock (ts1); ArduPilot answers it on the same link at once, ts1
+        echoed and tc1 its own time (GCS_MAVLINK::handle_timesync, libraries/GCS_MAVLink/GCS_Common.cpp)."""
+        stamp = time.perf_counter_ns()
+        self._timesync_sent.append(stamp)
+        self._send("timesync", 0, stamp)
+
+    def _timesync_answer(self, msg) -> None:
+        """The vehicle's answer to one of our requests: a round-trip sample, in vehicle seconds."""
+        if msg.tc1 != 0 and msg.ts1 in self._timesync_sent:
+            self._timesync_sent.remove(msg.ts1)
+            self.round_trip.add((time.perf_counter_ns() - msg.ts1) * 1e-9 * self.clock.rate)
 
     def _send_heartbeat(self) -> None:
         self._send("heartbeat", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
@@ -480,6 +504,8 @@ class Session:
                 self.clock.observe(boot_ms / 1000.0)
             if kind == "HEARTBEAT":
                 self.heartbeat = msg
+            elif kind == "TIMESYNC":
+                self._timesync_answer(msg)
             elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
                 answer = "accepted" if msg.result == mavlink.MAV_RESULT_ACCEPTED else "refused"
                 self.motor_test_answers[answer] += 1

@@ -28,7 +28,8 @@ WRENCH = ("X", "Y", "Z", "K", "M", "N")
 COLUMNS = (["t", "vehicle_time", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF]
            + [f"{d}_ddot_d" for d in DOF] + [f"tau_{w}" for w in WRENCH] + [f"tau_hat_{w}" for w in WRENCH]
            + [f"s_{d}" for d in DOF] + [f"gamma_{d}" for d in DOF] + [f"thrust_{i}" for i in range(1, 9)]
-           + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage"])
+           + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage",
+                                                   "horizon"])
 RUN_INFO = "run.json"
 _STOP = object()
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
@@ -50,7 +51,7 @@ def tick_row(r: TickRecord) -> list[str]:
     every other value to 9 significant digits."""
     times = [repr(float(r.t)), repr(float(r.vehicle_time))]
     values = [r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
-              *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage]
+              *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage, r.horizon]
     return times + [f"{float(v):.9g}" for v in values]
 
 

@@ -42,6 +42,7 @@ from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.guided import GuidedStream
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MANUAL, MOTOR_TEST_TIMEOUT, NEUTRAL, LinkError, Session, mavlink, mode_name
+from rov_mav.flight.prediction import StatePredictor
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.stations import Sighting, Station, Verdict, judge
 from rov_mav.flight.stream_rate import measure, too_slow
@@ -71,6 +72,11 @@ LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent veh
 MOTOR_TEST_START = 13.0          # vehicle s for the first DO_MOTOR_TEST to be accepted: ArduSub refuses one for 10 s
                                  # after an earlier test timed out, and retries a refused start every 2 s
 THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
+STALL = 0.1                      # wall s between two turns of the loop that mean this process stalled (at least 5
+STALL_PERIODS = 5                # control periods): a busy or suspended computer, not the link
+RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
+STARVED_WINDOW = 2.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
+STARVED_SHARE = 0.5
 # Ctrl-C, kill, a closed terminal or ssh session, Ctrl-\: each ends in the safe stop.
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
@@ -102,6 +108,7 @@ class Limits:
     max_depth: float | None = None            # m
     max_tracking_error: float | None = None   # m
     max_thrust: float | None = None           # N per thruster
+    max_tilt: float | None = None             # rad, |roll| or |pitch|
 
 
 @dataclass(frozen=True)
@@ -117,6 +124,7 @@ class RunOptions:
     approach_speed: float = 0.2        # m/s to the mission's start pose
     velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
     output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
+    predict: bool = True               # the law acts on the state predicted to when its command acts
     limits: Limits = Limits()
 
 
@@ -132,17 +140,29 @@ class RunResult:
     tau_hat: np.ndarray                # (N, 6)
     latency_ms: np.ndarray             # (M,) telemetry in -> command out, every tick
     tick_times: np.ndarray             # (M,) vehicle s of every tick
+    horizon_ms: np.ndarray             # (M,) how far each tick's state was predicted (0: not predicted)
+    round_trip_ms: float               # the link's round trip (TIMESYNC median) at the end, nan if never measured
+    stalls: int                        # times this process stalled
     report: list[str] = field(default_factory=list)
 
     def loop_figures(self) -> dict:
-        """p50/p99 latency (ms) and the achieved control rate (ticks per vehicle second)."""
+        """p50/p99 latency and prediction horizon (ms), the achieved control rate (ticks per vehicle second), the
+        round trip measured and the stalls of this process."""
         span = self.tick_times[-1] - self.tick_times[0] if self.tick_times.size > 1 else 0.0
         return {
             "ticks": int(self.tick_times.size),
             "control_rate_hz": (self.tick_times.size - 1) / span if span > 0 else 0.0,
-            "latency_p50_ms": float(np.percentile(self.latency_ms, 50)) if self.latency_ms.size else float("nan"),
-            "latency_p99_ms": float(np.percentile(self.latency_ms, 99)) if self.latency_ms.size else float("nan"),
+            "latency_p50_ms": _percentile(self.latency_ms, 50),
+            "latency_p99_ms": _percentile(self.latency_ms, 99),
+            "horizon_p50_ms": _percentile(self.horizon_ms, 50),
+            "horizon_p99_ms": _percentile(self.horizon_ms, 99),
+            "round_trip_ms": self.round_trip_ms,
+            "stalls": self.stalls,
         }
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    return float(np.percentile(values, q)) if values.size else float("nan")
 
 
 def warm_up(mission: Mission, controller: Controller | None, actuation: Actuation, period: float,
@@ -154,6 +174,11 @@ def warm_up(mission: Mission, controller: Controller | None, actuation: Actuatio
     if controller is not None:
         controller.step(eta, np.zeros(6), reference, period)
         controller.reset()
+        predictor = StatePredictor(controller.model, period)
+        predictor.commanded(0.0, np.ones(6))
+        predictor.observe(0.0, eta, np.zeros(6))
+        predictor.observe(period, eta, np.zeros(6))
+        predictor.predicted(period, eta, np.zeros(6), 3.5 * period)
     actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
     actuation.command(np.zeros(6))
     actuation.reset()
@@ -202,7 +227,13 @@ class Runner:
         self.warned: set[str] = set()
         self._ticks: deque[float] = deque()
         self._log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
-        self._loop = History(tick_time=1, latency_ms=1)
+        self._loop = History(tick_time=1, latency_ms=1, horizon_ms=1)
+        self.predictor = StatePredictor(controller.model, self.period) \
+            if controller is not None and options.predict else None
+        self.stalls = 0
+        self._stalled: deque[tuple[float, float]] = deque()   # (wall s it ended, wall s it lasted), recent stalls
+        self._resumed: float | None = None      # vehicle s the loop resumed after its last stall
+        self._held_tau = np.zeros(6)             # the wrench of the last command sent
         if session.rejections is not None:
             session.rejections.on_first = lambda r: self.say(
                 f"ignoring MAVLink not signed with our key (the first: {r.describe()}); counted, reported at the end",
@@ -281,6 +312,7 @@ class Runner:
         # From here on the vehicle is ours: free, or left by a run that died.
         self._use_gcs_sysid(gcs, verdict)
         s.start_heartbeats()
+        s.timesync = True            # the round trip, for the prediction and the summary
         if verdict.abandoned:
             self._neutralise(verdict.abandoned)
         for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
@@ -546,8 +578,10 @@ class Runner:
         o = self.options
         stale_after = o.stale_periods * self.period
         watch_from = self.session.clock.now()        # the watchdog counts from the loop's start at the earliest
+        turned = time.perf_counter()
         while True:
             self._interrupt()
+            turned = self._notice_stall(turned)
             state = self._pump(min(self.session.clock.wall_seconds(self.period), 0.02))
             if state is not None:
                 if self._tick(state):
@@ -573,6 +607,32 @@ class Runner:
                         if self.stale_episodes == STALE_REPORTS else ""
                     self.say(f"telemetry stale ({age * 1e3:.0f} ms): neutral on all thrusters until it returns"
                              + more, "warning")
+
+    def _notice_stall(self, last: float) -> float:
+        """A turn of the loop much later than the last one: this process stalled (a busy computer, SIGSTOP), the
+        thrusters holding its last command meanwhile. Noted, the next commands eased in from the one held
+        (`RESUME_RAMP`), and a run stalled again and again for most of the last STARVED_WINDOW s stops: it cannot
+        control the vehicle.
+        Returns this turn's wall time."""
+        now = time.perf_counter()
+        gap = now - last
+        if gap <= max(STALL, self.session.clock.wall_seconds(STALL_PERIODS * self.period)):
+            return now
+        self.stalls += 1
+        self._resumed = self.session.clock.now()
+        self._stalled.append((now, gap))
+        while self._stalled and self._stalled[0][0] < now - STARVED_WINDOW:
+            self._stalled.popleft()
+        if self.stalls <= STALE_REPORTS:
+            self.say(f"this process stalled for {gap * 1e3:.0f} ms (the thrusters held its last command): easing "
+                     "back in" + (" (further stalls are counted in the final report)" if self.stalls == STALE_REPORTS
+                                  else ""), "warning")
+        share = sum(min(g, STARVED_WINDOW) for _, g in self._stalled) / STARVED_WINDOW
+        if len(self._stalled) > 1 and share > STARVED_SHARE and not self.options.dry_run:
+            raise Abort(f"this computer is starving the control loop: stalled {share:.0%} of the last "
+                        f"{STARVED_WINDOW:g} s ({len(self._stalled)} stalls); the thrusters hold stale commands "
+                        "meanwhile (run it with --realtime, or on a less busy computer)")
+        return now
 
     def _pump(self, timeout: float) -> State | None:
         """Read what arrived; returns the newest complete state, if any."""
@@ -651,34 +711,47 @@ class Runner:
         if t >= 0 and not self.announced and not o.dry_run:
             self.announced = True
             self.session.announce(mission_start_text(state.t - t))
-        reference = self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
+        reference = self._reference(t)
         dt = min(max(state.t - self._prev_t, 0.0), o.stale_periods * self.period)
         self._prev_t = state.t
+        horizon = 0.0
         if self.guided is not None:
             out, thrusts = self.guided.output, np.full(CHANNELS, np.nan)
             pwm = self.decoder.servo[:CHANNELS] if self.decoder.servo is not None else np.full(CHANNELS, np.nan)
             self._check_limits(state, reference)
             self.guided.tick(state.t, reference, send=not o.dry_run)
         else:
-            out = self.controller.step(state.eta, state.nu, reference, dt)
+            eta, nu, t_act = state.eta, state.nu, self.session.clock.now() + self.session.round_trip.seconds
+            if self.predictor is not None:
+                self.predictor.observe(state.t, state.eta, state.nu)
+                eta, nu = self.predictor.predicted(state.t, state.eta, state.nu, t_act)
+                horizon = t_act - state.t if eta is not state.eta else 0.0
+            out = self.controller.step(eta, nu, self._reference(t + horizon) if horizon else reference, dt)
+            tau = self._eased(out.tau)
             if self.decoder.voltage is not None:
                 self.actuation.set_voltage(self.decoder.voltage)
-            thrusts, pwm, _ = self.actuation.command(out.tau)
+            thrusts, pwm, _ = self.actuation.command(tau)
             self._check_limits(state, reference)
             if not o.dry_run:
                 self._send_outputs(pwm)
+            self._commanded(t_act, self.actuation.allocator.matrix @ thrusts)
         latency = time.perf_counter() - state.received
         age = self.session.clock.now() - state.t
-        self._count_tick(state.t, latency)
+        self._count_tick(state.t, latency, horizon)
         if t >= 0:
             self._log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm, progress=self.mission.progress(t),
                             telemetry_age=age, latency=latency, control_rate=len(self._ticks),
-                            battery_voltage=self.actuation.voltage, true_disturbance=self.true_disturbance)
+                            battery_voltage=self.actuation.voltage, horizon=horizon,
+                            true_disturbance=self.true_disturbance)
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration
+
+    def _reference(self, t: float) -> np.ndarray:
+        """The reference (18,) at mission time t: the lead-in's before 0."""
+        return self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
 
     def _send_outputs(self, pwm: np.ndarray) -> None:
         """The tick's eight PWMs: ArduSub's motor test, or RC overrides for the outputs on RCIN passthrough."""
@@ -689,17 +762,39 @@ class Runner:
             self.session.send_override(pwm)
             self.last_command = self.session.override
 
-    def _count_tick(self, t: float, latency: float) -> None:
+    def _eased(self, tau: np.ndarray) -> np.ndarray:
+        """The law's wrench, eased in from the one held during a stall over RESUME_RAMP vehicle s after it: the
+        first command after a stall is not the whole correction of an error that grew while nothing was sent."""
+        if self._resumed is None:
+            return tau
+        share = (self.session.clock.now() - self._resumed) / RESUME_RAMP
+        if share >= 1.0:
+            self._resumed = None
+            return tau
+        return self._held_tau + max(share, 0.0) * (tau - self._held_tau)
+
+    def _commanded(self, t_act: float, wrench: np.ndarray) -> None:
+        """The wrench just sent (zero for neutral), acting from vehicle time t_act: held for the next stall and
+        known to the prediction."""
+        self._held_tau = wrench
+        if self.predictor is not None:
+            self.predictor.commanded(t_act, wrench)
+
+    def _count_tick(self, t: float, latency: float, horizon: float) -> None:
         self._ticks.append(t)
         while self._ticks and self._ticks[0] <= t - 1.0:
             self._ticks.popleft()
-        self._loop.append(tick_time=t, latency_ms=latency * 1e3)
+        self._loop.append(tick_time=t, latency_ms=latency * 1e3, horizon_ms=horizon * 1e3)
 
     def _check_limits(self, state: State, reference: np.ndarray) -> None:
         lim = self.options.limits
         crossed = []
         if lim.max_depth is not None and state.eta[2] > lim.max_depth:
             crossed.append(f"depth {state.eta[2]:.2f} m > max_depth {lim.max_depth:g} m")
+        tilt = max(abs(state.eta[3]), abs(state.eta[4]))
+        if lim.max_tilt is not None and tilt > lim.max_tilt:
+            crossed.append(f"tilt {np.degrees(tilt):.1f} deg (roll {np.degrees(state.eta[3]):.1f}, pitch "
+                           f"{np.degrees(state.eta[4]):.1f}) > max_tilt {np.degrees(lim.max_tilt):g} deg")
         if lim.max_tracking_error is not None:
             error = float(tracking_errors(state.eta[None], reference[None, :6])[0][0])
             if error > lim.max_tracking_error:
@@ -725,6 +820,7 @@ class Runner:
         if self.session.motor_test is not None:
             self.session.send_motor_test([NEUTRAL] * CHANNELS)
         self.actuation.reset()
+        self._commanded(self.session.clock.now() + self.session.round_trip.seconds, np.zeros(6))
         self.touched = True
 
     def _safe_stop(self, reason: str) -> list[str]:
@@ -733,6 +829,9 @@ class Runner:
         report = [f"stopping: {reason}"]
         if s.rejections is not None and s.rejections.count:
             report.append(s.rejections.summary())
+        if self.stalls:
+            report.append(f"this process stalled {self.stalls} time(s) (over {STALL * 1e3:.0f} ms between turns of "
+                          "its loop): the thrusters held its last command meanwhile")
         if self.stale_episodes:
             report.append(f"watchdog: telemetry went stale {self.stale_episodes} time(s) (older than "
                           f"{self.options.stale_periods:g} control periods); neutral was sent each time")
@@ -900,7 +999,10 @@ class Runner:
         return RunResult(
             code=code, reason=reason, completed=completed, t=log.column("t"), eta=log.column("eta"),
             eta_d=log.column("eta_d"), tau=log.column("tau"), tau_hat=log.column("tau_hat"),
-            latency_ms=self._loop.column("latency_ms"), tick_times=self._loop.column("tick_time"), report=report)
+            latency_ms=self._loop.column("latency_ms"), tick_times=self._loop.column("tick_time"),
+            horizon_ms=self._loop.column("horizon_ms"),
+            round_trip_ms=self.session.round_trip.seconds * 1e3 if self.session.round_trip.samples else float("nan"),
+            stalls=self.stalls, report=report)
 
 
 _MISSING_HELP = {

@@ -27,4 +27,5 @@ class TickRecord:
     latency: float                  # wall s from that sample's arrival to the command leaving
     control_rate: float             # Hz, achieved over the last second of vehicle time
     battery_voltage: float          # V
+    horizon: float = 0.0            # s the state was predicted forward (measurement to when the command acts)
     true_disturbance: np.ndarray | None = None   # (6,) when known (simulation)

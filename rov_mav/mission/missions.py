@@ -128,10 +128,14 @@ class _SegmentSchema(config.StrictModel):
         return self
 
 
+Tilt = Annotated[Angle, Field(gt=0, lt=math.pi / 2)]
+
+
 class LimitsSchema(config.StrictModel):
     max_depth: Positive | None = None            # m
     max_tracking_error: Positive | None = None   # m
     max_thrust: Positive | None = None           # N per thruster
+    max_tilt: Tilt | None = None                 # |roll| or |pitch|, rad or 'N deg' (run's default: 15 deg)
 
 
 class _MissionSchema(config.StrictModel):

@@ -323,7 +323,7 @@ def predict(m, x, trig, ring, newest, slot, horizon, d_hat, out, ws):
         out[i] = x[i]
     if horizon <= 0.0:
         return trig
-    n = int(math.ceil(horizon / PREDICT_STEP))
+    n = int(math.ceil(horizon / PREDICT_STEP - 1e-9))   # a horizon a rounding above a step is one step
     h = horizon / n
     for j in range(n):
         w = mean_wrench(ring, newest, slot, max(horizon - (j + 1) * h, 0.0), horizon - j * h, d_hat)
