@@ -154,7 +154,7 @@ def test_the_plant_receives_the_clipped_wrench(vehicle, line):
     assert np.array_equal(free.eta, unlimited.eta) and not np.array_equal(free.eta, trace.eta)
 
 
-@pytest.mark.parametrize("training_file", [TRAINING, MISSIONS / "scenarios" / "robust_telemetry.yaml"])
+@pytest.mark.parametrize("training_file", [TRAINING, *(MISSIONS / "scenarios" / f"robust_{name}.yaml" for name in ("telemetry", "dive"))])
 def test_held_out_scenarios_differ_from_training(line, training_file):
     """No held-out scenario repeats a training one (of either shipped training set); every held-out one has noise
     and sampled, delayed telemetry (robust.yaml has neither together); their seeds are disjoint; every condition the

@@ -16,7 +16,7 @@ from rov_mav.commands.arguments import cluster_address, count, output_folder, re
 from rov_mav.control.controller import KINDS
 
 DEFAULT_MISSIONS = ("missions/line.yaml", "missions/square.yaml")
-DEFAULT_TRAINING = "missions/scenarios/robust_telemetry.yaml"
+DEFAULT_TRAINING = "missions/scenarios/robust_dive.yaml"
 DEFAULT_HELD_OUT = "missions/scenarios/bench.yaml"
 DEFAULT_BUDGET = (30, 20)
 MAX_PARTICLES = 10_000
