@@ -22,7 +22,9 @@ MAY_IMPORT = {
     "rov_mav.review": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline", "rov_mav.flight",
                        "rov_mav.telemetry"},
 }
-FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing"}
+FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing", "rov_mav.sitl"}
+# The top: the command line and one module per subcommand; it may import any layer, and no layer may import it.
+TOP = ("rov_mav.cli", "rov_mav.commands")
 # Libraries that belong to the shell: none of them may be imported below it.
 SHELL_LIBRARIES = {"pymavlink", "rerun", "socket", "argparse", "select", "threading"}
 CORE = ("rov_mav.model", "rov_mav.control", "rov_mav.mission")
@@ -53,15 +55,32 @@ def _layer(module: str) -> str | None:
     return next((layer for layer in MAY_IMPORT if module == layer or module.startswith(layer + ".")), None)
 
 
+def _top(module: str) -> bool:
+    return any(module == t or module.startswith(t + ".") for t in TOP)
+
+
+def _ours(target: str) -> bool:
+    return target.split(".")[0] in ("rov_mav", "sim_bridge")
+
+
 @pytest.mark.parametrize("module,path", list(_modules()), ids=lambda v: v if isinstance(v, str) else "")
 def test_imports_point_down(module, path):
-    layer = _layer(module)
-    if layer is None:          # the CLI and commands sit on top and may import anything
+    """Every module has its place: the foundation imports only the foundation, a layer only what is below it, the
+    top (cli, commands) anything; nothing but the top imports the top."""
+    imports = {target for target in _imports(path) if _ours(target)}
+    if _top(module):
+        assert all(_top(t) or _foundation(t) or _layer(t) is not None for t in imports), f"{module}: {imports}"
         return
+    assert not any(_top(t) for t in imports), f"{module} imports the command line: {imports}"
+    if _foundation(module):
+        assert all(_foundation(t) for t in imports), f"foundation module {module} imports a layer: {imports}"
+        return
+    layer = _layer(module)
+    assert layer is not None, f"{module} belongs to no layer, the foundation or the top: give it its place"
     allowed = MAY_IMPORT[layer] | {layer}
     for target in _imports(path):
         top = target.split(".")[0]
-        if top in ("rov_mav", "sim_bridge") and not _foundation(target):
+        if _ours(target) and not _foundation(target):
             target_layer = _layer(target)
             assert target_layer in allowed, \
                 f"{module} imports {target} ({target_layer}), above or beside its layer {layer}"

@@ -59,9 +59,9 @@ def configure(p: argparse.ArgumentParser) -> None:
 def load_run(directory: str):
     """A run's log folder as an identification `Run`: ConfigError (one line) if it is not the log of a flight."""
     from rov_mav.config import ConfigError
-    from rov_mav.flight.runlog import BODY, DOF
+    from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS
     from rov_mav.offline.identification import Run
-    from rov_mav.review.logdir import TICKS, read_run_folder
+    from rov_mav.review.logdir import TICKS, column_block, read_run_folder
 
     path = Path(directory)
     if not path.is_dir():
@@ -71,9 +71,7 @@ def load_run(directory: str):
         print(f"rov-mav identify: warning: {warning}", file=sys.stderr)
     if folder.info.get("dry_run") or any(text.startswith("dry run:") for _, _, text in folder.events):
         raise ConfigError(f"{path}: the log of a dry run: no command reached the thrusters")
-    reference = [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF] + [f"{d}_ddot_d" for d in DOF]
-    pwm, thrust = [f"pwm_{i}" for i in range(1, 9)], [f"thrust_{i}" for i in range(1, 9)]
-    needed = ("t", *DOF, *BODY, *reference, *pwm, *thrust, "battery_voltage", "telemetry_age")
+    needed = ("t", *DOF, *BODY, *REFERENCE, *PWMS, *THRUSTS, "battery_voltage", "telemetry_age")
     ticks = folder.ticks
     missing = [c for c in needed if c not in ticks]
     if missing:
@@ -84,12 +82,9 @@ def load_run(directory: str):
     if np.any(np.diff(ticks["t"]) < 0):
         line = int(np.argmax(np.diff(ticks["t"]) < 0)) + 3
         raise ConfigError(f"{path / TICKS}: line {line}: time goes back")
-
-    def stack(columns):
-        return np.stack([ticks[c] for c in columns], axis=1)
-
-    return Run(directory, ticks["t"], stack(DOF), stack(BODY), stack(pwm), stack(thrust), ticks["battery_voltage"],
-               stack(reference), ticks["telemetry_age"])
+    return Run(directory, ticks["t"], column_block(ticks, DOF), column_block(ticks, BODY), column_block(ticks, PWMS),
+               column_block(ticks, THRUSTS), ticks["battery_voltage"], column_block(ticks, REFERENCE),
+               ticks["telemetry_age"])
 
 
 def _report(result, logs: list[str], out: str, window: float) -> str:

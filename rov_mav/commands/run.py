@@ -250,7 +250,8 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.guided import GuidedStream
     from rov_mav.flight.link import LinkError, Session
     from rov_mav.flight.runlog import RunLog
-    from rov_mav.flight.runner import THRUSTERS, Limits, Runner, RunOptions, warm_up
+    from rov_mav.flight.run_options import THRUSTERS, Limits, RunOptions
+    from rov_mav.flight.runner import Runner, warm_up
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics
     from rov_mav.model.vehicle import load_vehicle

@@ -25,11 +25,25 @@ from rov_mav.flight.tick import TickRecord
 DOF = ("x", "y", "z", "phi", "theta", "psi")
 BODY = ("u", "v", "w", "p", "q", "r")
 WRENCH = ("X", "Y", "Z", "K", "M", "N")
-COLUMNS = (["t", "vehicle_time", "progress"] + list(DOF) + list(BODY) + [f"{d}_d" for d in DOF] + [f"{d}_dot_d" for d in DOF]
-           + [f"{d}_ddot_d" for d in DOF] + [f"tau_{w}" for w in WRENCH] + [f"tau_hat_{w}" for w in WRENCH]
-           + [f"s_{d}" for d in DOF] + [f"gamma_{d}" for d in DOF] + [f"thrust_{i}" for i in range(1, 9)]
-           + [f"pwm_{i}" for i in range(1, 9)] + ["telemetry_age", "latency", "control_rate", "battery_voltage",
-                                                   "horizon"])
+# ticks.csv's column groups, by name: what `review.logdir.column_block` reads back (analyze, identify)
+REFERENCE = tuple(f"{d}{suffix}" for suffix in ("_d", "_dot_d", "_ddot_d") for d in DOF)
+THRUSTS = tuple(f"thrust_{i}" for i in range(1, 9))
+PWMS = tuple(f"pwm_{i}" for i in range(1, 9))
+
+
+def per_wrench(name: str) -> tuple[str, ...]:
+    """The six columns of a body wrench: tau_X ... tau_N."""
+    return tuple(f"{name}_{w}" for w in WRENCH)
+
+
+def per_dof(name: str) -> tuple[str, ...]:
+    """The six columns of a per-DOF quantity: s_x ... s_psi."""
+    return tuple(f"{name}_{d}" for d in DOF)
+
+
+COLUMNS = ("t", "vehicle_time", "progress", *DOF, *BODY, *REFERENCE, *per_wrench("tau"), *per_wrench("tau_hat"),
+           *per_dof("s"), *per_dof("gamma"), *THRUSTS, *PWMS, "telemetry_age", "latency", "control_rate",
+           "battery_voltage", "horizon")
 RUN_INFO = "run.json"
 _STOP = object()
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")

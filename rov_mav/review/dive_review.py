@@ -18,12 +18,13 @@ import numpy as np
 
 from rov_mav.config import ConfigError
 from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS, per_dof, per_wrench
 from rov_mav.mission.metrics import run_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis
 from rov_mav.review.dive import Dive, DiveRecorder
-from rov_mav.review.logdir import RunFolder, read_run_folder
+from rov_mav.review.logdir import RunFolder, column_block, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
 from rov_mav.review.tlog import ReadReport, read_tlog
 from rov_mav.telemetry.entities import TickColumns
@@ -240,15 +241,14 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
     reference_path = mission.sampled_reference(0.1)[:, :3] if mission is not None else None
     if has_ticks:
         t = ticks["t"]
-        eta = _block(ticks, ("x", "y", "z", "phi", "theta", "psi"))
-        reference = _block(ticks, [f"{d}{suffix}" for suffix in ("_d", "_dot_d", "_ddot_d")
-                                   for d in ("x", "y", "z", "phi", "theta", "psi")])
+        eta = column_block(ticks, DOF)
+        reference = column_block(ticks, REFERENCE)
         if mission is not None:
             flying = t >= 0
             reference[flying] = mission.reference(t[flying])
-        internals = {name: _block(ticks, [f"{name}_{w}" for w in ("X", "Y", "Z", "K", "M", "N")])
+        internals = {name: column_block(ticks, per_wrench(name))
                      for name in ("tau", "tau_hat")}
-        s, gamma = (_block(ticks, [f"{prefix}_{d}" for d in ("x", "y", "z", "phi", "theta", "psi")])
+        s, gamma = (column_block(ticks, per_dof(prefix))
                     for prefix in ("s", "gamma"))
         flown = t >= 0
         truth = info.get("true_disturbance")
@@ -262,7 +262,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
         metrics["reference"] = {"kind": "mission" if mission is not None else "ticks.csv",
                                 "source": mission.source if mission is not None else "ticks.csv",
                                 "mission_start_s": offset, "mission_start_from": how or "unknown (no mavlink.tlog)"}
-        nu = _block(ticks, ("u", "v", "w", "p", "q", "r"))
+        nu = column_block(ticks, BODY)
         trace = Trace(t=t, eta=eta, nu=nu, reference=reference, tau=internals["tau"], tau_hat=internals["tau_hat"],
                       s=s, gamma=gamma, true_disturbance=None if truth is None else np.array(truth, dtype=float),
                       completed=metrics["completed"])
@@ -270,14 +270,14 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
             reference_path = reference[flown, :3] if flown.any() else reference[:, :3]
         columns = TickColumns(
             t=t, eta=eta, reference=reference, tau=internals["tau"], tau_hat=internals["tau_hat"], s=s, gamma=gamma,
-            thrusts=_block(ticks, [f"thrust_{i}" for i in range(1, 9)]),
-            pwm=_block(ticks, [f"pwm_{i}" for i in range(1, 9)]),
+            thrusts=column_block(ticks, THRUSTS),
+            pwm=column_block(ticks, PWMS),
             true_disturbance=None if truth is None else np.broadcast_to(np.array(truth, float), (t.size, 6)),
             progress=ticks.get("progress"), telemetry_age=ticks.get("telemetry_age"),
             control_rate=ticks.get("control_rate"), battery_voltage=ticks.get("battery_voltage"))
     review = DiveReview(label=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace,
                         internals=has_ticks, columns=columns, planned=None, reference_path=reference_path)
-    commands = {"commanded (ticks.csv)": (ticks["t"], _block(ticks, [f"pwm_{i}" for i in range(1, 9)]))} \
+    commands = {"commanded (ticks.csv)": (ticks["t"], column_block(ticks, PWMS))} \
         if has_ticks else {}
     review.events += _run_events(folder.events, float(ticks["t"][0]) if has_ticks else 0.0,
                                  {text for *_, text in dive.texts} if dive is not None else set())
@@ -298,19 +298,13 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
     return review
 
 
-def _block(ticks: dict[str, np.ndarray], names) -> np.ndarray:
-    """Columns side by side, (N, len(names)); NaN for a column the log lacks."""
-    n = ticks["t"].size
-    return np.stack([ticks.get(name, np.full(n, np.nan)) for name in names], axis=1)
-
-
 def _tick_offset(ticks: dict[str, np.ndarray], dive: Dive) -> tuple[float | None, str]:
     """Vehicle s since boot of the ticks' t = 0: announced in the log, else found by matching ticks' states with
     the log's (a tick's state is the log's, unless the run read a newer attitude in the same batch)."""
     t0, how = mission_start(dive)
     if how.startswith("announced"):
         return t0, how
-    eta = _block(ticks, ("x", "y", "z", "phi", "theta", "psi"))
+    eta = column_block(ticks, DOF)
     offsets = []
     for k in range(min(MATCH_TICKS, eta.shape[0])):
         same = np.flatnonzero(np.all(np.isclose(dive.eta, eta[k], rtol=1e-7, atol=1e-9), axis=1))

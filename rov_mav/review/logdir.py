@@ -87,6 +87,13 @@ def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
     return {name: values[:, i] for i, name in enumerate(header_columns)}, stopped
 
 
+def column_block(ticks: dict[str, np.ndarray], names) -> np.ndarray:
+    """(N, len(names)) of ticks.csv's columns `names` (a group of `flight.runlog`'s), NaN for a column the log
+    lacks."""
+    n = ticks["t"].size
+    return np.stack([ticks.get(name, np.full(n, np.nan)) for name in names], axis=1)
+
+
 def _invalid(raw: bytes, width: int) -> str | None:
     if not raw.endswith(b"\n"):
         return "the last row is cut short (no end of line)"

@@ -1,0 +1,216 @@
+"""Claiming the vehicle, before anything drives it: identify it (ArduSub on a sub), watch the link for a few seconds
+sending nothing but reads and refuse a vehicle that is someone else's (`stations.judge`), then take the GCS role if
+a pilot's joystick shares the GCS sysid, make abandoned passthrough outputs neutral, ask for the telemetry the law
+needs and check its rate. Every change is written into the run's `VehicleChanges` as it is made."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.flight.run_io import RunIO
+from rov_mav.flight.run_options import Abort
+from rov_mav.flight.stations import Sighting, Verdict, judge
+from rov_mav.flight.stream_rate import measure, too_slow
+from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
+
+SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0}   # vehicle Hz
+RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
+OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
+OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
+ROLE_SYSIDS = range(254, 200, -1)   # sysids to take the GCS role with, when a pilot's joystick holds the GCS sysid
+DRY_RUN_SYSID = 254              # a dry run's own sysid: anything but the vehicle's GCS sysid
+PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
+
+
+class VehicleClaim:
+    """`claim()`: the vehicle identified, judged free, and ready to be taken (the GCS role, abandoned outputs neutral,
+    the state streaming at the control rate); Abort if it must not be. `set_directions(signs)` receives the vehicle's
+    MOT_1..8_DIRECTION."""
+
+    def __init__(self, io: RunIO, set_directions):
+        self.io = io
+        self.set_directions = set_directions
+
+    def claim(self) -> None:
+        io, s, o, changes = self.io, self.io.session, self.io.options, self.io.changes
+        vehicle = s.connect(o.heartbeat_timeout)
+        io.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
+        since = s.clock.now()
+        passthrough = [] if o.dry_run else self._read_outputs()
+        gcs = s.gcs_sysid()
+        verdict = judge(self._observe(since, passthrough), s.stations, o.force)
+        for station in s.stations.stations.values():
+            io.say(f"also on the link: {station.describe()}")
+        if verdict.refusal is not None:
+            raise Abort(f"refusing to take the vehicle: {verdict.refusal}. Nothing was sent to it (--force to take "
+                        "it over anyway)")
+        # From here on the vehicle is ours: free, or left by a run that died.
+        self._use_gcs_sysid(gcs, verdict)
+        s.start_heartbeats()
+        s.timesync = True            # the round trip, for the prediction and the summary
+        if verdict.abandoned:
+            self._take_abandoned_outputs(verdict.abandoned)
+        for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
+            msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+            hz = SIDE_RATES.get(name, o.rate)
+            if s.set_message_interval(msg_id, hz):
+                changes.streams.append(msg_id)
+            elif name in ("ATTITUDE", "LOCAL_POSITION_NED"):
+                raise Abort(f"the vehicle refused SET_MESSAGE_INTERVAL for {name} at {hz:g} Hz")
+        self._wait_for_state()
+        self._check_rates()
+
+    def _observe(self, since: float, passthrough: list[str]) -> Sighting:
+        """Watch the link for OBSERVE vehicle s, sending nothing but one-shot requests for RC_CHANNELS and
+        SERVO_OUTPUT_RAW (no stream rate is changed): who else is there, and is the RC input steady?"""
+        io, s = self.io, self.io.session
+        io.rc_seen = []
+        wall_end = time.monotonic() + s.clock.wall_seconds(OBSERVE) + 1.0
+        start, next_poll = None, 0.0
+        while time.monotonic() < wall_end:
+            io.interrupt()
+            now = s.clock.now()
+            start = now if start is None and s.clock.started else start
+            if start is not None and now - start >= OBSERVE:
+                break
+            if time.monotonic() >= next_poll:
+                next_poll = time.monotonic() + s.clock.wall_seconds(OBSERVE_POLL)
+                s.request_message(mavlink.MAVLINK_MSG_ID_RC_CHANNELS)
+                s.request_message(mavlink.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW)
+            io.pump(0.02)
+        rc, io.rc_seen = io.rc_seen, None
+        return Sighting(since=since, armed=s.armed, passthrough=passthrough, rc=rc)
+
+    def _read_outputs(self) -> list[str]:
+        """Save SERVO1..8_FUNCTION, learn MOT_1..8_DIRECTION; returns the outputs already on RCIN passthrough."""
+        io, s, changes = self.io, self.io.session, self.io.changes
+        names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
+        changes.saved_functions = s.get_params(names)
+        missing = [n for n in names if n not in changes.saved_functions]
+        if missing:
+            raise Abort(f"could not read {', '.join(missing)} from the vehicle")
+        directions = s.get_params([f"MOT_{n}_DIRECTION" for n in range(1, CHANNELS + 1)])
+        signs = [directions.get(f"MOT_{n}_DIRECTION", (1.0, 0))[0] for n in range(1, CHANNELS + 1)]
+        self.set_directions(np.array(signs))
+        reversed_ = [n for n, sign in enumerate(signs, 1) if sign < 0]
+        if reversed_:
+            io.say(f"MOT_n_DIRECTION = -1 on thruster(s) {reversed_}: passthrough and the motor test bypass it, so "
+                   "their PWM is mirrored about 1500")
+        stale = []
+        for n in range(1, CHANNELS + 1):
+            name = f"SERVO{n}_FUNCTION"
+            value, ptype = changes.saved_functions[name]
+            if int(value) == PASSTHROUGH_BASE + n:
+                changes.saved_functions[name] = (float(MOTOR_BASE + n), ptype)
+                stale.append(name)
+        return stale
+
+    def _take_abandoned_outputs(self, stale: list[str]) -> None:
+        """Outputs already on RCIN passthrough (a run that lost its link?) still drive their thrusters with the
+        last PWM: send neutral, and restore them to their motors when this run ends, whatever happens."""
+        io = self.io
+        io.say(f"{', '.join(stale)} on RCIN passthrough with the vehicle disarmed and no station driving them for "
+               f"{OBSERVE:g} s: taken as abandoned (a run that lost its link?); sending neutral; they will be "
+               "restored to their motors when this run ends", "warning")
+        io.session.override_rate = io.options.rate
+        io.changes.functions += stale
+        if not io.neutral_confirmed():
+            raise Abort("outputs left on RCIN passthrough and the vehicle does not confirm neutral")
+
+    def _use_gcs_sysid(self, found: tuple[str, int, int] | None, verdict: Verdict) -> None:
+        """Speak as the vehicle's GCS sysid (ArduSub takes RC overrides only from it). When a pilot station's
+        joystick shares that sysid, ArduSub would write it over our thrusters: take the GCS role for the run with a
+        sysid of our own (the parameter is restored on every exit), so ArduSub ignores the resting joystick while we
+        watch it."""
+        io, s, o = self.io, self.io.session, self.io.options
+        if found is None:
+            s.use_sysid(o.sysid or s.sysid)
+            io.say(f"the vehicle did not report MAV_GCS_SYSID or SYSID_MYGCS: speaking as sysid {s.sysid}",
+                   "warning")
+            return
+        name, value, ptype = found
+        if o.dry_run:
+            # Heartbeats from the GCS sysid would hide a lost link from the pilot's own ground station (and ArduSub
+            # would count them for its GCS failsafe): a dry run, which sends no override, speaks as another sysid.
+            s.use_sysid(DRY_RUN_SYSID if value != DRY_RUN_SYSID else DRY_RUN_SYSID - 1)
+            io.say(f"dry run: speaking as sysid {s.sysid}, not the vehicle's GCS sysid ({name} = {value})")
+            return
+        pilots = [p for p in verdict.resting_pilots if p.sysid == value]
+        own = o.sysid
+        if own is None and pilots:
+            taken = s.stations.sysids() | {s.vehicle.sysid}
+            own = next(n for n in ROLE_SYSIDS if n not in taken)
+        if own is None or own == value:
+            if pilots:
+                raise Abort(f"{pilots[0].describe()} shares the GCS sysid {value} that --sysid asks for: ArduSub "
+                            "would write its joystick over our thrusters (leave --sysid out, and the run takes the GCS "
+                            "role with a sysid of its own)")
+            s.use_sysid(value)
+            io.say(f"speaking as GCS sysid {s.sysid} ({name} = {value})")
+            return
+        if not s.set_param(name, own, ptype):
+            raise Abort(f"the vehicle did not confirm {name} = {own}")
+        io.changes.gcs = (name, value, ptype)
+        s.use_sysid(own)
+        why = (f": {', '.join(p.describe() for p in pilots)} is ignored by ArduSub until the run ends or hands the "
+               "vehicle to it" if pilots else "")
+        io.say(f"took the GCS role for this run: speaking as sysid {own}, {name} = {own} (was {value}; restored "
+               f"when the run ends){why}")
+
+    def _wait_for_state(self) -> None:
+        """Until ATTITUDE and LOCAL_POSITION_NED have both arrived, with progress messages and a timeout."""
+        io, timeout = self.io, self.io.options.position_timeout
+        start = time.monotonic()
+        next_note = start + PROGRESS_EVERY
+        while io.decoder.attitude is None or io.decoder.position is None:
+            io.interrupt()
+            io.pump(0.05)
+            now = time.monotonic()
+            missing = self._missing_state()
+            if now - start > timeout:
+                raise Abort(f"no {missing} from the vehicle after {timeout:g} s: "
+                            + _MISSING_HELP.get(missing, "check the link"))
+            if now >= next_note:
+                next_note = now + PROGRESS_EVERY
+                io.say(f"waiting for {missing} ({now - start:.0f} s of {timeout:g} s)")
+
+    def _missing_state(self) -> str:
+        decoder = self.io.decoder
+        names = [n for n, m in (("ATTITUDE", decoder.attitude), ("LOCAL_POSITION_NED", decoder.position))
+                 if m is None]
+        return " and ".join(names)
+
+    def _check_rates(self) -> None:
+        """Measure the state messages' rates over RATE_WINDOW vehicle s: what the vehicle sends, what arrives."""
+        io, s = self.io, self.io.session
+        stamps: dict[str, list[float]] = {"ATTITUDE": [], "LOCAL_POSITION_NED": []}
+        t_first = None
+        deadline = time.monotonic() + s.clock.wall_seconds(RATE_WINDOW) * 3 + 2.0
+        while time.monotonic() < deadline:
+            io.interrupt()
+            for msg, _ in s.poll(0.02):
+                io.track(msg)
+                kind = msg.get_type()
+                if kind in stamps:
+                    stamps[kind].append(msg.time_boot_ms / 1000.0)
+                    t_first = stamps[kind][0] if t_first is None else t_first
+            if t_first is not None and s.clock.now() - t_first >= RATE_WINDOW:
+                break
+        rates = {k: measure(v) for k, v in stamps.items()}
+        io.say("telemetry: " + "; ".join(f"{k} {r.describe()}" for k, r in rates.items())
+               + f" (asked {io.options.rate:g} Hz of vehicle time)")
+        slow = [why for k, r in rates.items() if (why := too_slow(k, r, io.options.rate)) is not None]
+        if slow:
+            raise Abort("telemetry too slow for the control rate: " + "; ".join(slow))
+
+
+_MISSING_HELP = {
+    "LOCAL_POSITION_NED": "the vehicle's estimator has no position source (ArduSub sends it only once its EKF has "
+                          "an origin and position aiding: a DVL or similar on a real BlueROV2; about 45 s after "
+                          "boot on SITL)",
+    "ATTITUDE": "the vehicle sends no attitude: check the link and the vehicle's stream rates",
+}
+_MISSING_HELP["ATTITUDE and LOCAL_POSITION_NED"] = _MISSING_HELP["ATTITUDE"]

@@ -1,0 +1,110 @@
+"""What every phase of a run uses to reach the vehicle and the operator: reading the link (each message decoded into
+the state, the vehicle's texts passed on, a watcher told of every message while flying), saying what happens to
+every sink, neutral on the thrusters, and the signal that stops the run."""
+
+from __future__ import annotations
+
+import signal
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from rov_mav.flight.link import CHANNELS, NEUTRAL, Session, mavlink
+from rov_mav.flight.run_options import Abort, RunOptions
+from rov_mav.flight.vehicle_changes import VehicleChanges
+from rov_mav.flight.vehicle_state import State, StateDecoder
+
+SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
+
+
+class RunIO:
+    def __init__(self, session: Session, options: RunOptions, changes: VehicleChanges, sinks: list):
+        self.session = session
+        self.options = options
+        self.changes = changes
+        self.sinks = sinks
+        self.decoder = StateDecoder(options.velocity_blend)
+        self.last_state: State | None = None
+        self.signal_name: str | None = None
+        self.stopping = False
+        self.rc_seen: list[list[int]] | None = None     # RC_CHANNELS rows, while the claim observes
+        self.flying_since: float | None = None    # vehicle s the vehicle became ours to fly (armed by us)
+        self.watcher: Callable[[object, str], None] | None = None   # while flying: is anyone else driving?
+        self.on_neutral: list[Callable[[], None]] = []   # told whenever neutral is sent instead of a command
+        self.mission_time: Callable[[float], float] = lambda t: 0.0
+
+    def say(self, text: str, level: str = "info") -> None:
+        """Tell every sink; a sink that fails (a closed terminal, a full disk) never stops the run or its stop."""
+        t = self.mission_time(self.last_state.t) if self.last_state is not None else 0.0
+        for sink in self.sinks:
+            try:
+                sink.log_event(t, text, level)
+            except Exception:   # noqa: BLE001 -- reporting must not break the safe stop
+                pass
+
+    def interrupt(self) -> None:
+        """Raise Abort for a signal received (SIGINT, SIGTERM, ...), unless the run is already stopping."""
+        if self.signal_name is not None and not self.stopping:
+            signum = signal.Signals[self.signal_name]
+            raise Abort(f"stopped by {self.signal_name}", 128 + signum)
+
+    def pump(self, timeout: float) -> State | None:
+        """Read what arrived within `timeout` wall s; returns the newest complete state, if any."""
+        received = None
+        for msg, wall in self.session.poll(timeout):
+            if self.track(msg):
+                received = wall
+        if received is None:
+            return None
+        self.last_state = self.decoder.state(received)
+        return self.last_state
+
+    def pump_for(self, vehicle_seconds: float) -> None:
+        end = time.monotonic() + self.session.clock.wall_seconds(vehicle_seconds)
+        while time.monotonic() < end:
+            self.interrupt()
+            self.pump(0.01)
+
+    def track(self, msg) -> bool:
+        """Decode one message (True if it completes a state); pass on the vehicle's texts; the watcher sees it."""
+        kind = msg.get_type()
+        if kind == "STATUSTEXT":
+            self.say(f"vehicle: {msg.text}", "warning" if msg.severity <= mavlink.MAV_SEVERITY_WARNING else "info")
+        elif kind == "RC_CHANNELS" and self.rc_seen is not None:
+            self.rc_seen.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
+        if self.watcher is not None and self.flying_since is not None and not self.stopping:
+            self.watcher(msg, kind)
+        return self.decoder.update(msg)
+
+    def send_neutral(self) -> None:
+        """Neutral on all eight channels (and in the motor test, when one runs), no waiting."""
+        self.session.send_override([NEUTRAL] * CHANNELS)
+        if self.session.motor_test is not None:
+            self.session.send_motor_test([NEUTRAL] * CHANNELS)
+        for hook in self.on_neutral:
+            hook()
+        self.changes.overrides_sent = True
+
+    def neutral_confirmed(self, confirm: float = SAFE_STOP_CONFIRM, slack: float = 0.3) -> bool:
+        """Send neutral and wait up to `confirm` vehicle s (plus `slack` wall s) for SERVO_OUTPUT_RAW showing 1500
+        on SERVO1..8."""
+        self.send_neutral()
+        self.decoder.servo = None
+        deadline = time.monotonic() + self.session.clock.wall_seconds(confirm) + slack
+        while time.monotonic() < deadline:
+            self.pump(0.01)
+            if self.decoder.servo is not None:
+                if np.all(np.abs(self.decoder.servo - NEUTRAL) <= 1):
+                    return True
+                self.decoder.servo = None          # still the old outputs: wait for the next report
+        return False
+
+    def answering(self) -> bool:
+        """Has the vehicle sent anything recently (within the link timeout)?"""
+        clock = self.session.clock
+        if not clock.started:
+            return False
+        self.pump(0.05)
+        return clock.now() - clock.last_vehicle <= self.options.link_timeout and \
+            time.perf_counter() - clock.last_wall <= clock.wall_seconds(self.options.link_timeout)

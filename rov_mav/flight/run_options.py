@@ -1,0 +1,98 @@
+"""What a run is asked to do (`RunOptions`, its `Limits`) and how it ends (`Abort` and its kinds, `RunResult`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
+THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
+
+
+@dataclass(frozen=True)
+class Limits:
+    max_depth: float | None = None            # m
+    max_tracking_error: float | None = None   # m
+    max_thrust: float | None = None           # N per thruster
+    max_tilt: float | None = None             # rad, |roll| or |pitch|
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    rate: float = 50.0                 # Hz of vehicle time: telemetry and overrides
+    dry_run: bool = False
+    force: bool = False
+    sysid: int | None = None           # our sysid; default: the vehicle's GCS sysid parameter
+    heartbeat_timeout: float = 15.0    # wall s
+    position_timeout: float = 90.0     # wall s to wait for LOCAL_POSITION_NED
+    stale_periods: float = 3.0         # telemetry older than this many periods -> neutral
+    link_timeout: float = 2.0          # vehicle s without telemetry -> abort
+    approach_speed: float = 0.2        # m/s to the mission's start pose
+    velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
+    output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
+    predict: bool = True               # the law acts on the state predicted to when its command acts
+    limits: Limits = Limits()
+
+    @property
+    def period(self) -> float:
+        return 1.0 / self.rate
+
+
+class Abort(Exception):
+    """The run ends early for a stated reason; `code` is the process exit status."""
+
+    def __init__(self, reason: str, code: int = 1):
+        super().__init__(reason)
+        self.reason = reason
+        self.code = code
+
+
+class LinkLost(Abort):
+    pass
+
+
+class HandOver(Abort):
+    """Someone else is driving: hand the vehicle over to them (neutral, release, motors back), left armed."""
+
+    def __init__(self, reason: str, t_detected: float, station=None):
+        super().__init__(reason, HANDED_OVER)
+        self.t_detected = t_detected
+        self.station = station
+
+
+@dataclass
+class RunResult:
+    code: int
+    reason: str
+    completed: bool
+    t: np.ndarray                      # (N,) mission ticks, vehicle s since the mission started
+    eta: np.ndarray                    # (N, 6)
+    eta_d: np.ndarray                  # (N, 6)
+    tau: np.ndarray                    # (N, 6)
+    tau_hat: np.ndarray                # (N, 6)
+    latency_ms: np.ndarray             # (M,) telemetry in -> command out, every tick
+    tick_times: np.ndarray             # (M,) vehicle s of every tick
+    horizon_ms: np.ndarray             # (M,) how far each tick's state was predicted (0: not predicted)
+    round_trip_ms: float               # the link's round trip (TIMESYNC median) at the end, nan if never measured
+    stalls: int                        # times this process stalled
+    report: list[str] = field(default_factory=list)
+
+    def loop_figures(self) -> dict:
+        """p50/p99 latency and prediction horizon (ms), the achieved control rate (ticks per vehicle second), the
+        round trip measured and the stalls of this process."""
+        span = self.tick_times[-1] - self.tick_times[0] if self.tick_times.size > 1 else 0.0
+        return {
+            "ticks": int(self.tick_times.size),
+            "control_rate_hz": (self.tick_times.size - 1) / span if span > 0 else 0.0,
+            "latency_p50_ms": _percentile(self.latency_ms, 50),
+            "latency_p99_ms": _percentile(self.latency_ms, 99),
+            "horizon_p50_ms": _percentile(self.horizon_ms, 50),
+            "horizon_p99_ms": _percentile(self.horizon_ms, 99),
+            "round_trip_ms": self.round_trip_ms,
+            "stalls": self.stalls,
+        }
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    return float(np.percentile(values, q)) if values.size else float("nan")
