@@ -212,3 +212,14 @@ def test_overrides_the_vehicle_ignores_stop_the_run_before_any_output_is_switche
     output = _aborted_and_left_safe(tmp_path, mission, ("--param", "RC_OVERRIDE_TIME=0"))
     assert "the vehicle does not apply our RC overrides" in output
     assert "SERVO1..8_FUNCTION set to RCIN1..8 passthrough" not in output
+
+
+def test_a_dry_run_that_would_have_aborted_does_not_exit_0(tmp_path):
+    """A dry run acts on no limit, but one it would have acted on is its result: exit 1, the limit named, never a
+    clean "completed" (the vehicle sits still while the reference moves away: 5 cm is crossed within seconds)."""
+    mission = short_mission(tmp_path, goto_x=1.0, hold=1.0)
+    with RunnerProcess(str(mission), "--dry-run", "--speedup", "10", "--max-tracking-error", "0.05") as run:
+        code = run.wait()
+    assert code == 1, run.output
+    assert "dry run: would abort here: tracking error" in run.output
+    assert "completed, exit 1: dry run: it would have aborted (limit crossed: tracking error" in run.output

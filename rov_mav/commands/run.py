@@ -355,7 +355,8 @@ def main(args: argparse.Namespace) -> int:
         path = Path(args.metrics)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(metrics, indent=2) + "\n")
-    status = "completed" if result.completed else f"NOT completed ({result.reason})"
+    status = ("completed" if result.code == 0 else f"completed, exit {result.code}: {result.reason}") \
+        if result.completed else f"NOT completed ({result.reason})"
     print(f"{mission.name} / {kind}{' (dry run)' if args.dry_run else ''}: {status}, "
           f"{metrics['duration_s']:.1f} s of mission flown")
     if result.t.size:

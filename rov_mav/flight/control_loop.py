@@ -1,6 +1,7 @@
 """The control loop, once the vehicle is ours: a tick for each new ATTITUDE + LOCAL_POSITION_NED pair (reference ->
 the state predicted to when the command acts -> law + adaptation -> allocation -> T200 map -> the output path; or
-the reference to ArduSub's GUIDED), the watchdog (stale telemetry -> neutral; none for the link timeout -> abort),
+the reference to ArduSub's GUIDED), and with the prediction a tick between samples of slow telemetry (the law runs
+at COMMAND_RATE at least, as the offline loop runs it at 100 Hz on its predicted state), the watchdog (stale telemetry -> neutral; none for the link timeout -> abort),
 the limits, this process's own stalls, and who else is driving (a pilot's joystick, another station's overrides,
 RC input that is not ours, a mode changed: hand over)."""
 
@@ -32,6 +33,8 @@ STALL_PERIODS = 5                # control periods): a busy or suspended compute
 RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
 STARVED_WINDOW = 2.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
 STARVED_SHARE = 0.5
+COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
+                                 # telemetry's rate, each on the last state carried forward (the law at its own rate)
 
 
 class FlightLoop:
@@ -58,7 +61,10 @@ class FlightLoop:
         self.stale_episodes = 0
         self.stalls = 0
         self.warned: set[str] = set()
-        self._prev_t = 0.0
+        self.would_abort: str | None = None     # a dry run's first crossed limit
+        self._prev_tick = 0.0                    # vehicle s of the last tick (clock)
+        self._last_state_t: float | None = None  # vehicle s of the last state ticked on
+        self.command_period = min(self.period, 1.0 / COMMAND_RATE) if self.predictor is not None else None
         self._ticks: deque[float] = deque()
         self._stalled: deque[tuple[float, float]] = deque()   # (wall s it ended, wall s it lasted), recent stalls
         self._resumed: float | None = None      # vehicle s the loop resumed after its last stall
@@ -77,13 +83,17 @@ class FlightLoop:
         while True:
             io.interrupt()
             turned = self._notice_stall(turned)
-            state = io.pump(min(io.session.clock.wall_seconds(self.period), 0.02))
+            state = io.pump(min(io.session.clock.wall_seconds(self.command_period or self.period), 0.02))
             if state is not None:
                 if self._tick(state):
                     return
                 continue
             seen = io.last_state.t if io.last_state is not None else watch_from
             age = io.session.clock.now() - max(seen, watch_from)
+            if self._due(age, stale_after):
+                if self._tick(io.last_state):     # between samples: the last state carried further forward
+                    return
+                continue
             if age > o.link_timeout and (state := io.pump(0.0)) is not None:
                 self._tick(state)           # it was this process that stalled, not the link
                 continue
@@ -101,6 +111,13 @@ class FlightLoop:
                         if self.stale_episodes == STALE_REPORTS else ""
                     io.say(f"telemetry stale ({age * 1e3:.0f} ms): neutral on all thrusters until it returns"
                            + more, "warning")
+
+    def _due(self, age: float, stale_after: float) -> bool:
+        """A command is due between two samples: the prediction is on, the last state is not stale, and a command
+        period has passed since the last tick (slow telemetry is then flown at COMMAND_RATE, not at its own rate)."""
+        if self.command_period is None or self.io.last_state is None or self._last_state_t is None:
+            return False
+        return age <= stale_after and self.io.session.clock.now() - self._prev_tick >= self.command_period
 
     def mission_time(self, t: float) -> float:
         """Vehicle s since the mission proper started (negative during the lead-in)."""
@@ -164,12 +181,15 @@ class FlightLoop:
     def _tick(self, state: State) -> bool:
         """One control tick; True when the mission is complete."""
         io, o = self.io, self.options
+        now = io.session.clock.now()
         if self.t_start is None:
             self.t_start = state.t
             self.lead_in = approach(state.eta, self.mission.start_pose, o.approach_speed)
             if self.lead_in is not None:
                 io.say(f"lead-in to the mission's start pose: {self.lead_in.duration:.1f} s")
-            self._prev_t = state.t - self.period
+            self._prev_tick = now - self.period
+        fresh = state.t != self._last_state_t      # a new sample, not the last one carried further
+        self._last_state_t = state.t
         if self.stale:
             self.stale = False
             if self.stale_episodes <= STALE_REPORTS:
@@ -179,8 +199,8 @@ class FlightLoop:
             self.announced = True
             io.session.announce(mission_start_text(state.t - t))
         reference = self._reference(t)
-        dt = min(max(state.t - self._prev_t, 0.0), o.stale_periods * self.period)
-        self._prev_t = state.t
+        dt = min(max(now - self._prev_tick, 0.0), o.stale_periods * self.period)
+        self._prev_tick = now
         horizon = 0.0
         if isinstance(self.output, Guided):
             out, thrusts = self.output.stream.output, np.full(CHANNELS, np.nan)
@@ -188,9 +208,10 @@ class FlightLoop:
             self._check_limits(state, reference)
             self.output.stream.tick(state.t, reference, send=not o.dry_run)
         else:
-            eta, nu, t_act = state.eta, state.nu, io.session.clock.now() + io.session.round_trip.seconds
+            eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
             if self.predictor is not None:
-                self.predictor.observe(state.t, state.eta, state.nu)
+                if fresh:
+                    self.predictor.observe(state.t, state.eta, state.nu)
                 eta, nu = self.predictor.predicted(state.t, state.eta, state.nu, t_act)
                 horizon = t_act - state.t if eta is not state.eta else 0.0
             out = self.controller.step(eta, nu, self._reference(t + horizon) if horizon else reference, dt)
@@ -202,10 +223,11 @@ class FlightLoop:
             if not o.dry_run:
                 self.last_command = self.output.send(pwm)
             self._commanded(t_act, self.actuation.allocator.matrix @ thrusts)
-        latency = time.perf_counter() - state.received
+        # telemetry in -> command out, for a new sample's tick (a tick between samples answers no telemetry)
+        latency = time.perf_counter() - state.received if fresh else float("nan")
         age = io.session.clock.now() - state.t
         self._count_tick(state.t, latency, horizon)
-        if t >= 0:
+        if t >= 0 and fresh:
             self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
@@ -271,6 +293,7 @@ class FlightLoop:
             return
         if not self.options.dry_run:
             raise Abort("limit crossed: " + "; ".join(crossed))
+        self.would_abort = self.would_abort or "limit crossed: " + "; ".join(crossed)
         for text in crossed:
             kind = text.split(" ")[0]
             if kind not in self.warned:

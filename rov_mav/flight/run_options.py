@@ -71,7 +71,7 @@ class RunResult:
     eta_d: np.ndarray                  # (N, 6)
     tau: np.ndarray                    # (N, 6)
     tau_hat: np.ndarray                # (N, 6)
-    latency_ms: np.ndarray             # (M,) telemetry in -> command out, every tick
+    latency_ms: np.ndarray             # (M,) telemetry in -> command out (NaN for a tick between samples)
     tick_times: np.ndarray             # (M,) vehicle s of every tick
     horizon_ms: np.ndarray             # (M,) how far each tick's state was predicted (0: not predicted)
     round_trip_ms: float               # the link's round trip (TIMESYNC median) at the end, nan if never measured
@@ -95,4 +95,6 @@ class RunResult:
 
 
 def _percentile(values: np.ndarray, q: float) -> float:
+    """The q-th percentile of the values that are not NaN (NaN if none)."""
+    values = values[~np.isnan(values)]
     return float(np.percentile(values, q)) if values.size else float("nan")

@@ -96,6 +96,8 @@ class Runner:
                 self.output.take_over()
             self.loop.fly()
             completed = True
+            if self.loop.would_abort is not None:     # a dry run that crossed a limit did not fly a mission
+                code, reason = 1, f"dry run: it would have aborted ({self.loop.would_abort})"
         except Abort as exc:
             code, reason = exc.code, exc.reason
             handover = exc if isinstance(exc, HandOver) else None

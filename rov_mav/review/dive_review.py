@@ -250,7 +250,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                      for name in ("tau", "tau_hat")}
         s, gamma = (column_block(ticks, per_dof(prefix))
                     for prefix in ("s", "gamma"))
-        flown = t >= 0
+        flown = (t >= 0) & _fresh(ticks)
         truth = info.get("true_disturbance")
         metrics.update(_tracking(mission.name if mission else info.get("mission", "unknown"), info.get("controller"),
                                  t[flown], eta[flown], reference[flown, :6],
@@ -347,6 +347,15 @@ def _battery_from_ticks(ticks: dict[str, np.ndarray]) -> dict:
 
 
 # -- shared ----------------------------------------------------------------------------------------------------
+
+def _fresh(ticks: dict[str, np.ndarray]) -> np.ndarray:
+    """The ticks on a new state: a run predicting its state also commands between samples, on the last state carried
+    forward (the same vehicle_time again); its metrics count each state once, as the run's own do."""
+    vehicle_time = ticks.get("vehicle_time")
+    if vehicle_time is None:
+        return np.ones(ticks["t"].size, dtype=bool)
+    return np.concatenate([[True], np.diff(vehicle_time) != 0])
+
 
 def _tracking(name: str, controller: str | None, t: np.ndarray, eta: np.ndarray, eta_d: np.ndarray,
               internals: dict[str, np.ndarray] | None, completed: bool,
