@@ -7,6 +7,7 @@ import csv
 import signal
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from run_helpers import (
@@ -223,3 +224,39 @@ def test_a_dry_run_that_would_have_aborted_does_not_exit_0(tmp_path):
     assert code == 1, run.output
     assert "dry run: would abort here: tracking error" in run.output
     assert "completed, exit 1: dry run: it would have aborted (limit crossed: tracking error" in run.output
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is `pid` (from /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def test_a_runner_killed_outright_takes_its_built_in_vehicle_with_it(tmp_path):
+    """The built-in vehicle runs in a child process: SIGKILL of the runner (no stop runs) still ends it, by the
+    kernel's parent-death signal, so no simulated vehicle is left running on its port."""
+    mission = short_mission(tmp_path, goto_x=4.0, hold=5.0)
+    with RunnerProcess(str(mission), "--speedup", "2") as run:
+        run.wait_for("armed in MANUAL")
+        vehicles = _children(run.proc.pid)
+        assert vehicles, "no child process: the built-in vehicle should run in one"
+        run.signal(signal.SIGKILL)
+        run.proc.wait(WAIT)
+        deadline = time.monotonic() + WAIT
+        while any(Path(f"/proc/{pid}").exists() and "Z" not in _state(pid) for pid in vehicles):
+            assert time.monotonic() < deadline, f"the vehicle's process outlived the runner: {vehicles}"
+            time.sleep(0.1)
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return "Z"
