@@ -65,8 +65,10 @@ class VehicleProcess:
         try:
             status, text = receive.recv()
         except EOFError:
+            self._process.join(STOP_TIMEOUT)
+            code = self._process.exitcode
             self.stop()
-            raise LinkError(f"it exited with status {self._process.exitcode}") from None
+            raise LinkError(f"it exited with status {code}") from None
         if status != "ok":
             self.stop()
             raise LinkError(text)

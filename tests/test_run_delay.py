@@ -15,20 +15,22 @@ import threading
 import time
 
 import pytest
-from conftest import MISSIONS, ROOT
+from conftest import ROOT
 from run_helpers import RunnerProcess, assert_left_safe, bridge_with_checker, checker, short_mission
 
 DELAY_SPEEDUP = 4.0
 
 
 def _fly_delayed(tmp_path, *args: str, faults: str = "delay=50ms,link=0") -> tuple[int, str]:
-    """The report's line (60 s) on a bridge whose link to the runner is 50 ms late each way (vehicle time)."""
-    bridge, checker_port = bridge_with_checker(tmp_path, "--environment", str(MISSIONS / "line.yaml"),
+    """A 4 m leg and a 90 degree turn (27 s, the square's disturbance) on a bridge whose link to the runner is 50 ms
+    late each way (vehicle time)."""
+    mission = short_mission(tmp_path, goto_x=4.0, hold=5.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--environment", str(mission), "--start-depth", "1",
                                                "--link-faults", faults, speedup=DELAY_SPEEDUP)
     with bridge:
         gcs = checker(checker_port, speedup=DELAY_SPEEDUP)
         try:
-            with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(MISSIONS / "line.yaml"),
+            with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission),
                                "--heartbeat-timeout", "60", *args) as run:
                 code = run.wait()
             assert_left_safe(gcs)
@@ -60,7 +62,7 @@ def test_the_same_link_without_prediction_loses_the_vehicle_and_says_so(tmp_path
 def test_telemetry_at_5_hz_is_flown_with_commands_at_50_hz_on_the_predicted_state(tmp_path):
     """A slow link (`--rate 5`: the state 5 times a second): the law still runs at 50 Hz of vehicle time, each command
     on the last state carried forward, as the offline loop runs it. Without that, the same gains held each command
-    for 200 ms and oscillated (18.9 cm RMS, 0.19 rad of attitude error, on this mission)."""
+    for 200 ms and oscillated (18.9 cm RMS, 0.19 rad of attitude error, on the report's line)."""
     code, output = _fly_delayed(tmp_path, "--rate", "5", faults="delay=0ms,link=0")
     assert code == 0, output
     rms = float(re.search(r"position error RMS ([\d.]+) cm", output).group(1))

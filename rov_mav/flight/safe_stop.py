@@ -20,6 +20,7 @@ from rov_mav.flight.run_options import HandOver
 
 HANDOVER_CONFIRM = 0.2           # vehicle s to see neutral when handing over: a pilot's joystick may be writing over it
 LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent vehicle is reported as lost
+REPORT_SLACK = 0.3               # wall s more for a late SERVO_OUTPUT_RAW (none when handing over: the pilot waits)
 
 
 class SafeStop:
@@ -86,7 +87,7 @@ class SafeStop:
         link coming back: keep sending it until it shows (handing over, the pilot's joystick may rule the outputs:
         once is enough while the vehicle answers)."""
         io = self.io
-        confirm, slack = (HANDOVER_CONFIRM, 0.0) if self.handover is not None else (SAFE_STOP_CONFIRM, 0.3)
+        confirm, slack = (HANDOVER_CONFIRM, 0.0) if self.handover is not None else (SAFE_STOP_CONFIRM, REPORT_SLACK)
         neutral = bool(self._attempt("neutral", lambda: io.neutral_confirmed(confirm, slack)))
         alive = neutral or io.answering()
         retry_until = time.monotonic() + LOST_LINK_RETRY
