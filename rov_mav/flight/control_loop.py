@@ -17,7 +17,7 @@ from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, mavlink, mode_name
 from rov_mav.flight.outputs import Guided, Passthrough
-from rov_mav.flight.prediction import StatePredictor
+from rov_mav.flight.prediction import MAX_HORIZON, StatePredictor
 from rov_mav.flight.run_io import RunIO
 from rov_mav.flight.run_options import Abort, HandOver, LinkLost
 from rov_mav.flight.runlog import mission_start_text
@@ -210,6 +210,10 @@ class FlightLoop:
         else:
             eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
             if self.predictor is not None:
+                if t_act - state.t > MAX_HORIZON and not o.dry_run:
+                    raise Abort(f"the state is {t_act - state.t:.2f} s old when its command acts (round trip "
+                                f"{io.session.round_trip.seconds * 1e3:.0f} ms): beyond the {MAX_HORIZON:g} s this "
+                                "run predicts; a link this slow cannot fly the mission")
                 if fresh:
                     self.predictor.observe(state.t, state.eta, state.nu)
                 eta, nu = self.predictor.predicted(state.t, state.eta, state.nu, t_act)
