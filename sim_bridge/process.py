@@ -26,7 +26,8 @@ PR_SET_PDEATHSIG = 1
 
 
 def _serve(config: BridgeConfig, ready) -> None:
-    """The child: the bridge from `config`, announced on `ready` as ("ok", firmware) or ("error", one line)."""
+    """The child: the bridge from `config`, announced on `ready` as ("ok", firmware) or ("error", one line); its
+    clock starts when the parent says "go" (or goes away)."""
     for signum in (signal.SIGINT, signal.SIGHUP, signal.SIGQUIT):
         signal.signal(signum, signal.SIG_IGN)
     libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
@@ -41,24 +42,37 @@ def _serve(config: BridgeConfig, ready) -> None:
         return
     signal.signal(signal.SIGTERM, lambda *_: bridge.request_stop())
     ready.send(("ok", bridge.params.firmware))
+    try:
+        ready.recv()
+    except EOFError:
+        return
     bridge.run()
 
 
 class VehicleProcess:
-    """`start()` the bridge of `config` in a child process (LinkError if it cannot), `stop()` it."""
+    """`launch()` the bridge of `config` in a child process (it loads meanwhile), `start()` its clock (LinkError if
+    it cannot start), `stop()` it."""
 
     def __init__(self, config: BridgeConfig):
         self.config = config
         self.firmware: str | None = None
         self._process = None
+        self._pipe = None
 
-    def start(self) -> None:
+    def launch(self) -> None:
+        """Spawn the child; it imports and loads its compiled model while the caller gets ready."""
         context = multiprocessing.get_context("spawn")   # a fresh interpreter: no threads or locks inherited
-        receive, send = context.Pipe(duplex=False)
-        self._process = context.Process(target=_serve, args=(self.config, send), name="built-in vehicle",
+        self._pipe, child = context.Pipe()
+        self._process = context.Process(target=_serve, args=(self.config, child), name="built-in vehicle",
                                         daemon=True)
         self._process.start()
-        send.close()
+        child.close()
+
+    def start(self) -> None:
+        """Once the child is loaded and its link open: its clock starts now."""
+        if self._process is None:
+            self.launch()
+        receive = self._pipe
         if not receive.poll(START_TIMEOUT):
             self.stop()
             raise LinkError(f"no answer within {START_TIMEOUT:g} s")
@@ -73,6 +87,7 @@ class VehicleProcess:
             self.stop()
             raise LinkError(text)
         self.firmware = text
+        receive.send("go")
 
     def stop(self) -> None:
         if self._process is None:

@@ -47,7 +47,8 @@ DEFAULT_MAX_TILT_DEG = 15.0   # deg of roll or pitch: a BlueROV2 flies level; be
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
 ArduSub (a real one, ArduSub SITL, or `rov-mav sim-bridge`). Without --target, the built-in simulated vehicle
-starts in this process (at the mission's start depth, in the mission's environment) and the mission is flown there.
+starts in a child process (at the mission's start depth, in the mission's environment) and the mission is flown
+there.
 
 How it drives the thrusters (--output thrusters): SERVO1..8_FUNCTION are saved and switched to RCIN1..8 passthrough
 (each confirmed), and 8 PWMs go out with RC_CHANNELS_OVERRIDE at --rate Hz of vehicle time, neutral (1500) first and
@@ -112,7 +113,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", type=mavlink_target, metavar="CONN",
                    help="pymavlink connection: udp:HOST:PORT (listen; a vehicle sends to 14550), udpout:HOST:PORT, "
                         "tcp:HOST:PORT (ArduSub SITL: tcp:127.0.0.1:5760), or a serial device (see --baud); "
-                        "default: start the built-in simulated vehicle in this process")
+                        "default: start the built-in simulated vehicle in a child process")
     add_controller_options(p)
     p.add_argument("--rate", type=number(1.0, MAX_RATE), default=50.0, metavar="HZ",
                    help="control rate in Hz of vehicle time, 1 to 400: telemetry asked for and overrides sent "
@@ -191,12 +192,11 @@ def _free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-def _start_bridge(mission, speedup: float, key: bytes | None):
+def _launch_vehicle(mission, speedup: float, key: bytes | None):
     """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with
-    the loop), its home at the mission's origin when it has one; returns (vehicle, connection string for it)."""
-    from rov_mav.flight.link import LinkError
+    the loop), its home at the mission's origin when it has one, loading while this process gets ready; returns
+    (vehicle, connection string for it). Its clock starts with `_start_vehicle`."""
     from sim_bridge.config import DEFAULT_ORIGIN, BridgeConfig
-    from sim_bridge.link import LinkError as BridgeLinkError
     from sim_bridge.process import VehicleProcess
 
     port = _free_udp_port()
@@ -204,13 +204,20 @@ def _start_bridge(mission, speedup: float, key: bytes | None):
     vehicle = VehicleProcess(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
                                           environment=mission.environment, start_depth=float(mission.start_pose[2]),
                                           origin=origin, signing_key=key))
+    vehicle.launch()
+    return vehicle, f"udpout:127.0.0.1:{port}"
+
+
+def _start_vehicle(vehicle, target: str, speedup: float) -> None:
+    from rov_mav.flight.link import LinkError
+    from sim_bridge.link import LinkError as BridgeLinkError
+
     try:
         vehicle.start()
     except BridgeLinkError as exc:
         raise LinkError(f"the built-in vehicle could not start: {exc}") from None
-    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {vehicle.firmware}) on udp port {port}, "
-          f"speedup {speedup:g}", flush=True)
-    return vehicle, f"udpout:127.0.0.1:{port}"
+    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {vehicle.firmware}) on udp port "
+          f"{target.rsplit(':', 1)[1]}, speedup {speedup:g}", flush=True)
 
 
 def _default_recording(mission) -> Path:
@@ -296,9 +303,11 @@ def main(args: argparse.Namespace) -> int:
     try:
         if target is None:
             # The built-in vehicle's clock runs from its start, under the mission's disturbance: what is slow to
-            # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick).
+            # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick), the
+            # vehicle's own process loading meanwhile.
+            bridge, target = _launch_vehicle(mission, args.speedup, key)
             prepare_compute()
-            bridge, target = _start_bridge(mission, args.speedup, key)
+            _start_vehicle(bridge, target, args.speedup)
         session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
                                signing_key=key)
         if mission is None:
