@@ -210,6 +210,10 @@ WRONG_VALUES = {   # a file's content -> the key and reason the line must give
     "name a path": (lambda d: d.update(name="../../etc"), "name: must be usable as a folder name"),
     "path a mapping": (lambda d: d.update(path={"goto": 1}), "path: Input should be a valid list"),
     "limits a number": (lambda d: d.update(limits=3), "limits: Input should be a valid dictionary"),
+    "max_tilt past 90 deg": (lambda d: d.update(limits={"max_tilt": "95 deg"}), "limits.max_tilt: Input should be "
+                                                                               "less than 1.57"),
+    "max_tilt without a unit": (lambda d: d.update(limits={"max_tilt": 15}), "limits.max_tilt: 15 is more than 2 pi "
+                                                                           "radians: degrees need a unit"),
 }
 
 
@@ -282,6 +286,7 @@ BAD_NUMBERS = [   # argv -> the option the line must name
     (["run", SQUARE, "--max-depth", "-1"], "--max-depth", "expected a number above 0"),
     (["run", SQUARE, "--max-thrust", "inf"], "--max-thrust", "expected a number above 0"),
     (["run", SQUARE, "--max-tracking-error", "nan"], "--max-tracking-error", "expected a number above 0"),
+    (["run", SQUARE, "--max-tilt", "90"], "--max-tilt", "expected a number above 0 and at most 89"),
     (["run", SQUARE, "--baud", "0"], "--baud", "expected an integer from 1 to 10000000"),
     (["run", SQUARE, "--k1", "1,2,3,4,5,nan"], "--k1", "NaN or infinity"),
     (["run", SQUARE, "--k2", "1,2,3"], "--k2", "3 values, expected 6"),
