@@ -31,7 +31,7 @@ STALE_REPORTS = 3                # stale-telemetry episodes (and stalls) reporte
 STALL = 0.1                      # wall s between two turns of the loop that mean this process stalled (at least 5
 STALL_PERIODS = 5                # control periods): a busy or suspended computer, not the link
 RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
-STARVED_WINDOW = 2.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
+STARVED_WINDOW = 1.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
 STARVED_SHARE = 0.5
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
