@@ -19,7 +19,7 @@ import numpy as np
 from rov_mav.model import kernel
 
 MAX_HORIZON = 2.0        # vehicle s: the furthest a state is predicted (the run stops rather than act on an older one)
-CAPACITY = 512           # commands held (compacted to the newest half when full: over MAX_HORIZON at 400 Hz)
+CAPACITY = 2048          # commands held (compacted to the newest half when full: over MAX_HORIZON at 400 Hz)
 RTT_SAMPLES = 15         # round trips in the median
 
 
