@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rov_mav.mission.metrics import finite_percentile, loop_figures
+
 HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
 
@@ -79,22 +81,10 @@ class RunResult:
     report: list[str] = field(default_factory=list)
 
     def loop_figures(self) -> dict:
-        """p50/p99 latency and prediction horizon (ms), the achieved control rate (ticks per vehicle second), the
-        round trip measured and the stalls of this process."""
-        span = self.tick_times[-1] - self.tick_times[0] if self.tick_times.size > 1 else 0.0
-        return {
-            "ticks": int(self.tick_times.size),
-            "control_rate_hz": (self.tick_times.size - 1) / span if span > 0 else 0.0,
-            "latency_p50_ms": _percentile(self.latency_ms, 50),
-            "latency_p99_ms": _percentile(self.latency_ms, 99),
-            "horizon_p50_ms": _percentile(self.horizon_ms, 50),
-            "horizon_p99_ms": _percentile(self.horizon_ms, 99),
-            "round_trip_ms": self.round_trip_ms,
-            "stalls": self.stalls,
-        }
-
-
-def _percentile(values: np.ndarray, q: float) -> float:
-    """The q-th percentile of the values that are not NaN (NaN if none)."""
-    values = values[~np.isnan(values)]
-    return float(np.percentile(values, q)) if values.size else float("nan")
+        """The `loop` block (`mission.metrics.loop_figures`), with the prediction's horizon p50/p99 (ms), the round
+        trip measured and the stalls of this process."""
+        return {**loop_figures(self.tick_times, self.latency_ms),
+                "horizon_p50_ms": finite_percentile(self.horizon_ms, 50),
+                "horizon_p99_ms": finite_percentile(self.horizon_ms, 99),
+                "round_trip_ms": self.round_trip_ms,
+                "stalls": self.stalls}

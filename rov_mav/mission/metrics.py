@@ -47,3 +47,22 @@ def trace_metrics(mission: str, controller: str, trace) -> dict:
     """`run_metrics` of an offline run (a `rov_mav.offline.simulation.Trace`)."""
     return run_metrics(mission, controller, trace.t, trace.eta, trace.reference[:, :6], trace.tau, trace.tau_hat,
                        trace.true_disturbance, trace.completed)
+
+
+def loop_figures(tick_t: np.ndarray, latency_ms: np.ndarray) -> dict:
+    """A run's `loop` block: ticks, achieved rate (ticks per vehicle s), telemetry-in to command-out latency p50 / p99
+    (ms, over the finite values: a tick between samples has none)."""
+    span = float(tick_t[-1] - tick_t[0]) if tick_t.size > 1 else 0.0
+    return {
+        "ticks": int(tick_t.size),
+        "control_rate_hz": (tick_t.size - 1) / span if span > 0 else 0.0,
+        "latency_p50_ms": finite_percentile(latency_ms, 50),
+        "latency_p99_ms": finite_percentile(latency_ms, 99),
+    }
+
+
+def finite_percentile(values: np.ndarray, q: float) -> float:
+    """The q-th percentile of the finite values (NaN if none)."""
+    values = values[np.isfinite(values)]
+    return float(np.percentile(values, q)) if values.size else float("nan")
+

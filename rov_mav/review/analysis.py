@@ -90,18 +90,6 @@ def loop_latency(state_wall: np.ndarray, command_wall: np.ndarray) -> np.ndarray
     return 1e3 * (following[answered] - state_wall[answered])
 
 
-def loop_figures(tick_t: np.ndarray, latency_ms: np.ndarray) -> dict:
-    """The run's `loop` block: ticks, achieved rate (ticks per vehicle s), latency p50 / p99 (ms)."""
-    span = float(tick_t[-1] - tick_t[0]) if tick_t.size > 1 else 0.0
-    latency_ms = latency_ms[np.isfinite(latency_ms)]
-    return {
-        "ticks": int(tick_t.size),
-        "control_rate_hz": (tick_t.size - 1) / span if span > 0 else 0.0,
-        "latency_p50_ms": float(np.percentile(latency_ms, 50)) if latency_ms.size else float("nan"),
-        "latency_p99_ms": float(np.percentile(latency_ms, 99)) if latency_ms.size else float("nan"),
-    }
-
-
 def pwm_limits(params: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
     """(low (8,), high (8,)) us: SERVO1..8_MIN / _MAX as the vehicle reported them, else ArduSub's defaults."""
     low = np.array([params.get(f"SERVO{n}_MIN", PWM_LIMITS[0]) for n in range(1, CHANNELS + 1)])

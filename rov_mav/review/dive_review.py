@@ -19,7 +19,7 @@ import numpy as np
 from rov_mav.config import ConfigError
 from rov_mav.flight.link import CHANNELS, mavlink
 from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS, per_dof, per_wrench
-from rov_mav.mission.metrics import run_metrics
+from rov_mav.mission.metrics import loop_figures, run_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis
@@ -140,7 +140,7 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     thrusters = main is not None and (tested is not None or _passthrough(dive))
     latency = analysis.loop_latency(dive.state_wall, stream[main][0]) if thrusters else np.zeros(0)
     in_window = _within(command_t, window)
-    loop = analysis.loop_figures(command_t[in_window], latency)
+    loop = loop_figures(command_t[in_window], latency)
     if main is None:
         loop["source"] = "no RC overrides"
     elif tested is not None:
@@ -258,7 +258,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                                  completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
                                  true_disturbance=truth))
         latency = ticks["latency"] * 1e3 if "latency" in ticks else np.full(t.size, np.nan)
-        metrics["loop"] = {**analysis.loop_figures(t, latency), "source": "ticks.csv"}
+        metrics["loop"] = {**loop_figures(t, latency), "source": "ticks.csv"}
         metrics["reference"] = {"kind": "mission" if mission is not None else "ticks.csv",
                                 "source": mission.source if mission is not None else "ticks.csv",
                                 "mission_start_s": offset, "mission_start_from": how or "unknown (no mavlink.tlog)"}
