@@ -74,8 +74,8 @@ class StatePredictor:
         if self._previous is not None and 0.0 < t - self._previous[0] <= MAX_HORIZON:
             t0, x0 = self._previous
             ring = self._ring(t, t - t0)
-            kernel.observe_disturbance(self.model, x0, _trig(x0), ring, len(ring) - 1, self.slot, t - t0, x,
-                                       self.d_hat, self._ws)
+            kernel.observe_disturbance(self.model, x0, kernel.attitude_trig(x0), ring, len(ring) - 1, self.slot,
+                                       t - t0, x, self.d_hat, self._ws)
         self._previous = (t, x)
 
     def predicted(self, t: float, eta: np.ndarray, nu: np.ndarray, t_act: float) -> tuple[np.ndarray, np.ndarray]:
@@ -85,8 +85,8 @@ class StatePredictor:
             return eta, nu
         x = np.concatenate([eta, nu])
         ring = self._ring(t_act, horizon)
-        kernel.predict(self.model, x, _trig(x), ring, len(ring) - 1, self.slot, horizon, self.d_hat, self._out,
-                       self._ws[:60])
+        kernel.predict(self.model, x, kernel.attitude_trig(x), ring, len(ring) - 1, self.slot, horizon, self.d_hat,
+                       self._out, self._ws[:60])
         return self._out[:6].copy(), self._out[6:].copy()
 
     def _ring(self, end: float, span: float) -> np.ndarray:
@@ -109,6 +109,3 @@ class StatePredictor:
         integral[index < 0] = 0.0
         return np.diff(integral, axis=0) / self.slot
 
-
-def _trig(x: np.ndarray) -> tuple:
-    return (np.cos(x[3]), np.sin(x[3]), np.cos(x[4]), np.sin(x[4]), np.cos(x[5]), np.sin(x[5]))
