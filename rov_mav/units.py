@@ -1,8 +1,10 @@
-"""Angles: wrapping, and angles in configuration files (radians by default, or '90 deg', '1.57 rad')."""
+"""Angles (wrapping; in configuration files radians by default, or '90 deg', '1.57 rad') and durations written
+with their unit ('50ms', '2s') in fault descriptions."""
 
 from __future__ import annotations
 
 import math
+import re
 from typing import Annotated, Any
 
 import numpy as np
@@ -37,3 +39,16 @@ def parse_angle(value: Any) -> float:
 
 
 Angle = Annotated[float, BeforeValidator(parse_angle)]
+
+
+_DURATION = re.compile(r"^\s*([-+0-9.eE]+|nan|inf)\s*(ms|s)\s*$", re.IGNORECASE)
+
+
+def parse_duration(text: str) -> float | None:
+    """Seconds from '50ms' or '2s' (the unit required); None unless it is a finite time of 0 or more."""
+    match = _DURATION.match(text)
+    try:
+        value = float(match.group(1)) * (1e-3 if match.group(2).lower() == "ms" else 1.0) if match else math.nan
+    except ValueError:
+        return None
+    return value if math.isfinite(value) and value >= 0 else None

@@ -18,20 +18,19 @@ import heapq
 import itertools
 import math
 import random
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.config import ConfigError, read_yaml
+from rov_mav.units import parse_duration
 
 REORDER_HOLD = 0.05            # vehicle s a held-back message waits for a successor to overtake it
 PROBABILITIES = ("loss", "dup", "reorder")
 DURATIONS = ("delay", "jitter")
 KEYS = (*PROBABILITIES, *DURATIONS, "cut", "drop", "link")
 EXAMPLE = "loss=0.2,delay=50ms,jitter=10ms,dup=0.01,reorder=0.05,cut=30s@20s,drop=PARAM_VALUE@40s,link=0"
-_DURATION = re.compile(r"^\s*([-+0-9.eE]+|nan|inf)\s*(ms|s)\s*$", re.IGNORECASE)
 _MESSAGE_IDS = {cls.msgname: msg_id for msg_id, cls in mavlink.mavlink_map.items()}
 
 
@@ -78,12 +77,8 @@ def _probability(key: str, text: str) -> float:
 
 
 def _duration(key: str, text: str) -> float:
-    match = _DURATION.match(text)
-    try:
-        value = float(match.group(1)) * (1e-3 if match.group(2).lower() == "ms" else 1.0) if match else math.nan
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0):
+    value = parse_duration(text)
+    if value is None:
         raise FaultError(f"{key}={text}: expected a time of 0 or more with its unit, e.g. 50ms or 2s")
     return value
 
