@@ -7,10 +7,11 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
 from rov_mav.model import kernel
+from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, items_of, parse_vehicle_faults
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
@@ -41,6 +42,17 @@ class EnvironmentSchema(config.StrictModel):
     current: Vec3 = [0.0] * 3                 # NED water velocity, m/s
     noise: NoiseSchema = NoiseSchema()
     telemetry: TelemetrySchema = TelemetrySchema()   # offline only: `run` sees the real link's stream
+    vehicle_faults: str | list[str] | None = None      # `rov_mav.model.vehicle_faults`' grammar
+
+    @field_validator("vehicle_faults")
+    @classmethod
+    def _faults_parse(cls, value):
+        if value is not None:
+            try:
+                parse_vehicle_faults(items_of(value, "environment"))
+            except VehicleFaultError as exc:
+                raise ValueError(str(exc)) from None
+        return value
 
     @model_validator(mode="after")
     def _sinusoid_needs_a_period(self) -> "EnvironmentSchema":
@@ -64,6 +76,7 @@ class Environment:
     noise: np.ndarray = field(default_factory=lambda: np.zeros(4))   # position, attitude, velocity, rate
     telemetry: np.ndarray = field(default_factory=lambda: np.zeros(2))   # sample period (s, 0 = every tick), delay (s)
     predict: bool = True        # the controller predicts its late measurement forward
+    vehicle_faults: VehicleFaults = VehicleFaults()   # what fails on the vehicle, and when
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":
@@ -75,6 +88,8 @@ class Environment:
             noise=np.array([s.noise.position, s.noise.attitude, s.noise.velocity, s.noise.rate]),
             telemetry=np.array([1.0 / s.telemetry.rate if s.telemetry.rate > 0 else 0.0, s.telemetry.delay]),
             predict=s.telemetry.predict,
+            vehicle_faults=(parse_vehicle_faults(items_of(s.vehicle_faults, "environment"))
+                            if s.vehicle_faults is not None else VehicleFaults()),
         )
 
     @property
