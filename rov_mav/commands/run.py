@@ -98,7 +98,8 @@ examples:
 
 exit status: 0 mission complete and the vehicle left safe; 1 aborted or refused (the reason is printed), or a
 safe-stop step not confirmed (named); 2 bad arguments or files;
-3 handed over to another station (pilot takeover); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
+3 handed over to another station (pilot takeover); 6 a thruster failed and what is left cannot fly the
+mission; 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
 """
 
 
@@ -173,6 +174,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pretension", choices=["on", "off"], default="on",
                    help="add thrust patterns with no net wrench so that every thruster works outside its dead band "
                         "(on, default: small moments without thrusters switching on and off), or not")
+    p.add_argument("--thruster-check", choices=["on", "off"], default="on",
+                   help="watch every thruster for doing what it is told, from the vehicle's motion (on, default: a "
+                        "1 N pattern of thrusts with no net wrench, 2 s period, keeps each one's commands moving; a "
+                        "dead, stuck, weak or reversed thruster is named, the allocation re-solved around it, and the "
+                        "run stops, exit 6, if what is left cannot fly the mission), or not (off)")
     p.add_argument("--realtime", action="store_true",
                    help="ask the operating system for real-time scheduling (SCHED_FIFO) and locked memory, so that a "
                         "busy computer does not stall the loop; says in one line what was refused (it needs root or "
@@ -296,7 +302,7 @@ def main(args: argparse.Namespace) -> int:
         nonlocal rerun_target, rerun, actuation, controller
         rerun_target, rerun = rerun_sink(args, model, mission, _default_recording(mission))
         actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
-                              pretension=args.pretension == "on")
+                              pretension=args.pretension == "on", probe=args.thruster_check == "on" and not guided)
         controller = None if guided else Controller(model, settings)
         warm_up(mission, controller, actuation, 1.0 / args.rate, args.approach_speed)
 
@@ -331,6 +337,7 @@ def main(args: argparse.Namespace) -> int:
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
                          velocity_blend=args.velocity_blend, output=args.output, predict=args.predict == "on",
+                         thruster_check=args.thruster_check == "on",
                          limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed

@@ -5,6 +5,10 @@ quadratic law, scaled by its `thrust_scale` and `per_thruster_scale`); this only
 thruster's range is its map's at the measured battery voltage, capped at `max_thrust` N both ways. The cap is also held in the PWM domain (per
 thruster), at the highest voltage seen: the battery's voltage sags and recovers faster than the vehicle reports it,
 and a PWM computed at a sagged voltage pushes harder once the voltage recovers.
+A thruster found not to do what it is told (`rov_mav.flight.thruster_health`) is allocated with its effectiveness g:
+the allocation solves for the thrust it gives (its column of B unchanged, its range g times its own), and it is told
+that thrust divided by g; a dead or stuck one (g = 0) has its column zeroed, is told nothing and is left out of the
+pretension.
 Passthrough bypasses ArduSub's MOT_n_DIRECTION, so reversed thrusters (direction -1) get the PWM mirrored about 1500.
 
 PWMs go out in whole microseconds, and no PWM gives a thrust inside a dead band's edge step (ArduPilot SITL's
@@ -21,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.model.pretension import Pretension
+from rov_mav.model.pretension import Pretension, sparse_null_vectors
 from rov_mav.model.thrusters import (
     AllocationInfo,
     Allocator,
@@ -39,13 +43,15 @@ EDGE_MARGIN = 5.0         # us beyond a dead band's edge: the smallest thrust pr
 # 100 N of force. A vehicle that keeps its attitude keeps its thrusters pointing where the allocation assumes; with
 # all axes weighted alike, a saturated surge demand on SITL pitched the vehicle 46 deg within a second.
 ALLOCATION_WEIGHTS = np.array([1.0, 1.0, 1.0, 100.0, 100.0, 1.0])
+PROBE_THRUST = 1.0        # N: amplitude of the null-space probe (no net wrench while every thruster works)
+PROBE_PERIOD = 2.0        # vehicle s
 
 
 class Actuation:
     """`command(tau)` -> (thrusts (8,) N, PWMs (8,) us as sent, AllocationInfo)."""
 
     def __init__(self, vehicle, max_thrust: float | None = None, voltage: float = DEFAULT_VOLTAGE,
-                 diffuse: bool = True, pretension: bool = True):
+                 diffuse: bool = True, pretension: bool = True, probe: bool = False):
         self.vehicle = vehicle
         self.diffuse = diffuse
         self.pretension: Pretension | None = None
@@ -59,6 +65,9 @@ class Actuation:
         self.pwm_range = (np.full(len(vehicle.thruster_positions), 1100.0),
                           np.full(len(vehicle.thruster_positions), 1900.0))
         self.allocator: Allocator | None = None
+        self.gains = np.ones(len(vehicle.thruster_positions))    # each thruster's effectiveness (1: healthy)
+        self.delivered = np.zeros(len(vehicle.thruster_positions))   # N the last PWMs sent ask for (clipped, whole us)
+        self.probe = probe
         self.set_voltage(voltage)
 
     def set_voltage(self, voltage: float) -> None:
@@ -71,10 +80,27 @@ class Actuation:
         if abs(voltage - self.voltage) < VOLTAGE_STEP:
             return
         self.voltage = float(voltage)
-        self.allocator = Allocator.for_vehicle(self.vehicle, voltage, self.t200, weights=ALLOCATION_WEIGHTS,
-                                               max_thrust=self.max_thrust)
+        self._allocate()
+
+    def set_gain(self, thruster: int, gain: float) -> None:
+        """Thruster `thruster` (0-based) gives `gain` of the thrust it is told (0: nothing, -1: reversed): allocate
+        around it from now on."""
+        self.gains[thruster] = gain
+        self._allocate()
+        self.carry[thruster] = 0.0
+
+    def _allocate(self) -> None:
+        healthy = Allocator.for_vehicle(self.vehicle, self.voltage, self.t200, weights=ALLOCATION_WEIGHTS,
+                                        max_thrust=self.max_thrust)
+        g = self.gains
+        self._active = np.flatnonzero(g != 0.0)
+        self._null = sparse_null_vectors(healthy.matrix[:, self._active])
+        kept = np.where(g != 0.0, g, 1.0)           # a thruster left out keeps its range, its column zeroed
+        self.allocator = Allocator(healthy.matrix * (g != 0.0), np.minimum(kept * healthy.f_min, kept * healthy.f_max),
+                                   np.maximum(kept * healthy.f_min, kept * healthy.f_max), ALLOCATION_WEIGHTS)
         if self._use_pretension:
-            self.pretension = Pretension(self.allocator.matrix, self._edge_thrust(voltage))
+            self.pretension = Pretension(healthy.matrix[:, self._active],
+                                         np.abs(g[self._active]) * self._edge_thrust(self.voltage)[self._active])
 
     def _edge_thrust(self, voltage: float) -> np.ndarray:
         """(n,) N: each thruster's thrust EDGE_MARGIN us beyond its dead band, the smaller of the two directions."""
@@ -88,15 +114,24 @@ class Actuation:
         """MOT_1..8_DIRECTION of the vehicle (+1 or -1 each)."""
         self.directions = np.where(np.asarray(directions, dtype=float) < 0, -1.0, 1.0)
 
-    def command(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, AllocationInfo]:
-        thrusts, info = self.allocator.thrusts(tau)
+    def command(self, tau: np.ndarray, t: float | None = None) -> tuple[np.ndarray, np.ndarray, AllocationInfo]:
+        """(thrusts (8,) N each thruster is told, PWMs (8,) us as sent, the allocation's info); t: vehicle s, for
+        the probe."""
+        given, info = self.allocator.thrusts(tau)
+        if self.probe and t is not None and not info.saturated:
+            phase = 2.0 * np.pi * t / PROBE_PERIOD
+            for j, vector in enumerate(self._null):
+                given[self._active] += PROBE_THRUST * np.sin(phase + j * np.pi / 2) * vector
         if self.pretension is not None and not info.saturated:
-            thrusts = self.pretension.apply(thrusts)
+            given[self._active] = self.pretension.apply(given[self._active])
+        thrusts = np.zeros_like(given)
+        thrusts[self._active] = given[self._active] / self.gains[self._active]
         asked = thrusts + self.carry if self.diffuse else thrusts
         low, high = self.pwm_range
         pwm = np.clip(np.round(thrusts_to_pwms(asked, self.voltage, self.t200)), low, high)
+        self.delivered = self.t200.thrust(pwm, self.voltage)     # what the PWMs sent ask of each thruster, N
         if self.diffuse:
-            owed = asked - self.t200.thrust(pwm, self.voltage)
+            owed = asked - self.delivered
             self.carry = np.where((pwm <= low) | (pwm >= high), 0.0, np.clip(owed, -MAX_CARRY, MAX_CARRY))
         return thrusts, NEUTRAL + self.directions * (pwm - NEUTRAL), info
 

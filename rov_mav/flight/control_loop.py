@@ -21,6 +21,7 @@ from rov_mav.flight.prediction import MAX_HORIZON, StatePredictor
 from rov_mav.flight.run_io import RunIO
 from rov_mav.flight.run_options import Abort, HandOver, LinkLost
 from rov_mav.flight.runlog import mission_start_text
+from rov_mav.flight.thruster_watch import ThrusterWatch
 from rov_mav.flight.tick import TickRecord
 from rov_mav.flight.vehicle_state import State
 from rov_mav.mission.approach import approach
@@ -53,6 +54,8 @@ class FlightLoop:
         self.period = io.options.period
         self.predictor = StatePredictor(controller.model, self.period) \
             if controller is not None and io.options.predict else None
+        self.thrusters = ThrusterWatch(controller.model, actuation, self.period, io.say) \
+            if controller is not None and io.options.thruster_check and not io.options.dry_run else None
         self.last_command: list[int] | None = None    # the last flight PWMs sent
         self.lead_in: Mission | None = None
         self.t_start: float | None = None      # vehicle time of the first tick
@@ -209,6 +212,8 @@ class FlightLoop:
             self.output.stream.tick(state.t, reference, send=not o.dry_run)
         else:
             eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
+            if fresh and self.thrusters is not None:
+                self.thrusters.observe(state.t, np.concatenate([state.eta, state.nu]))
             if self.predictor is not None:
                 if t_act - state.t > MAX_HORIZON and not o.dry_run:
                     raise Abort(f"the state is {t_act - state.t:.2f} s old when its command acts (round trip "
@@ -222,11 +227,13 @@ class FlightLoop:
             tau = self._eased(out.tau)
             if io.decoder.voltage is not None:
                 self.actuation.set_voltage(io.decoder.voltage)
-            thrusts, pwm, _ = self.actuation.command(tau)
+            thrusts, pwm, _ = self.actuation.command(tau, t_act)
             self._check_limits(state, reference)
             if not o.dry_run:
                 self.last_command = self.output.send(pwm)
-            self._commanded(t_act, self.actuation.allocator.matrix @ thrusts)
+            self._commanded(t_act, self.actuation.allocator.wrench(thrusts * self.actuation.gains))
+            if self.thrusters is not None:
+                self.thrusters.told(t_act, self.actuation.delivered, tau)
         # telemetry in -> command out, for a new sample's tick (a tick between samples answers no telemetry)
         latency = time.perf_counter() - state.received if fresh else float("nan")
         age = io.session.clock.now() - state.t

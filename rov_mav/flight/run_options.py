@@ -34,6 +34,7 @@ class RunOptions:
     velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
     output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
     predict: bool = True               # the law acts on the state predicted to when its command acts
+    thruster_check: bool = True        # watch the thrusters for doing what they are told (`flight.thruster_watch`)
     limits: Limits = Limits()
 
     @property

@@ -377,6 +377,23 @@ class Allocator:
         )
         return f, info
 
+    def authority(self) -> np.ndarray:
+        """(6,) the largest force (N) or moment (N m) along each axis alone, either way (the smaller of the two),
+        that thrusts within their limits give with nothing on the other five axes: a linear program per axis and
+        direction (SciPy's HiGHS)."""
+        from scipy.optimize import linprog
+
+        out = np.zeros(6)
+        for axis in range(6):
+            others = np.delete(self.matrix, axis, axis=0)
+            reach = []
+            for sign in (1.0, -1.0):
+                result = linprog(-sign * self.matrix[axis], A_eq=others, b_eq=np.zeros(5),
+                                 bounds=list(zip(self.f_min, self.f_max)), method="highs")
+                reach.append(sign * float(self.matrix[axis] @ result.x) if result.success else 0.0)
+            out[axis] = min(reach)
+        return out
+
     def _bounded(self, tau: np.ndarray) -> np.ndarray:
         """Thrusts (n,) in [f_min, f_max] minimising ||W (B f - tau)||_2 for one wrench tau (6,). (SciPy's optimizers
         load here, on the first saturated wrench, not with the model: the bridge and `analyze` never need them.)"""

@@ -1,0 +1,232 @@
+"""Which thrusters do what they are told, from the vehicle's motion alone: a standard BlueROV2 reports no thruster RPM
+or current, so a fouled, jammed or miswired thruster shows only as motion the commands do not explain.
+
+Every SPAN s or more of measured states (x_k at vehicle time t_k), the controller's model carries the state of the
+span's start, x_{k-1}, over the interval D = t_k - t_{k-1} under the wrench the thrusters were told to give (each
+command from the instant it acts, through the thrusters' first-order lag, `kernel.predict`, no disturbance); what the
+measured velocity differs by is a wrench, the interval's mean:
+    r_k = M (nu_k - nu_model) / D
+(over a span of several samples the velocity noise counts once, not once a sample).
+If thruster i gives (1 + a_i) times the thrust f_i it is told (a_i = 0 healthy, -1 dead, -0.7 at a third of its
+thrust, -2 reversed) and the water pushes with d,
+    r_k = sum_i a_i B_i fbar_i + d + noise,       fbar_i the mean thrust told to thruster i over the interval,
+B_i the allocation matrix's column i. A Kalman filter estimates theta = (a_1..a_8, d): each a_i mean-reverting to 0
+(spread SPREAD_A, memory MEMORY_A: it may step when a thruster fails, and a combination the motion does not show, such
+as all four horizontal thrusters' pretension, stays near healthy), d a random walk (it drifts with waves, current
+and heading), the noise of r learnt from the filter's own innovations. A constant shortfall of thrust and a change of the water's push look alike; what tells them apart is
+the thruster's commands changing, which a fault makes them do (the law answers the error it causes).
+
+A thruster is named once its effectiveness g_i = 1 + a_i has stayed below HEALTHY, and CERTAIN standard deviations
+short of 1, for CONFIRM vehicle s, alone (thrusters fail one at a time; several low at once is the water): `Verdict` says dead (or stuck: a steady push the commands do not move), weak (its
+share) or reversed. Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rov_mav.flight.prediction import MAX_HORIZON, CommandHistory
+from rov_mav.model import kernel
+
+HEALTHY = 0.6             # effectiveness below this is a fault
+CERTAIN = 2.0             # ... when its shortfall from healthy (1) is this many standard deviations of the estimate
+CONFIRM = 0.8             # vehicle s the verdict must hold before it is given
+WARM_UP = 10.0            # vehicle s of samples before any verdict (the disturbance and the noise are learnt first)
+SETTLE = 4.0              # vehicle s after a fault is answered before the next verdict (the transient settles)
+SPAN = 0.25               # vehicle s: each residual spans at least this (the velocity noise over it, not over a sample)
+DEAD = 0.2                # effectiveness below this (and above REVERSED): gives nothing useful
+REVERSED = -0.3           # effectiveness below this: pushes the other way
+SPREAD_A = 0.4            # std of each a_i around 0 (healthy) when nothing is learnt of it
+MEMORY_A = 10.0           # s: time constant over which an a_i unobserved returns to that belief
+PRIOR_D = 30.0            # N or N m: std of the disturbance at the start
+DRIFT_D = 1.0             # N per sqrt(s) of the random walk of d
+NOISE_TIME = 5.0          # s: time constant of the learnt residual noise
+NOISE_FLOOR = 1e-4        # N^2: the least residual variance (a noise-free simulation is not infinitely certain)
+NOISE_START = 1.0         # N^2: residual variance before any is learnt
+STUCK_PUSH = 3.0          # N: a steady push along a dead thruster's axis beyond this names it stuck
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Thruster `thruster` (1-based) gives `effectiveness` of what it is told; `kind` dead | stuck | weak |
+    reversed; `push` N: for a stuck one, the steady thrust it gives whatever it is told; `at` the vehicle time the
+    estimate first left the healthy range."""
+
+    thruster: int
+    kind: str
+    effectiveness: float
+    at: float
+    push: float = 0.0
+
+    def describe(self) -> str:
+        if self.kind == "weak":
+            return f"thruster {self.thruster} weak: it gives {self.effectiveness:.0%} of the thrust it is told"
+        if self.kind == "reversed":
+            return f"thruster {self.thruster} reversed: it pushes the other way (effectiveness {self.effectiveness:.2f})"
+        if self.kind == "stuck":
+            return f"thruster {self.thruster} stuck: a steady {self.push:+.1f} N whatever it is told"
+        return f"thruster {self.thruster} dead: no thrust from it (effectiveness {self.effectiveness:.2f})"
+
+    @property
+    def gain(self) -> float:
+        """The effectiveness to allocate with: 0 for a dead or stuck thruster, else the estimate (-1 reversed)."""
+        if self.kind in ("dead", "stuck"):
+            return 0.0
+        return -1.0 if self.kind == "reversed" else self.effectiveness
+
+
+class ThrusterHealth:
+    """`told(t_act, thrusts)` for every command, `observe(t, x)` for every new measured state; `verdicts()` the
+    thrusters newly found faulty. `matrix` B (6, n); `model_packed` the controller's model; `slot` s."""
+
+    def __init__(self, model_packed: np.ndarray, matrix: np.ndarray, slot: float, time_constant: float = 0.0):
+        self.model = np.ascontiguousarray(model_packed, dtype=float)
+        self.matrix = np.asarray(matrix, dtype=float)
+        self.n = self.matrix.shape[1]
+        self.slot = slot
+        self.lag = 1.0 - np.exp(-slot / time_constant) if time_constant > 0 else 1.0   # per slot
+        self.settle = 5.0 * time_constant        # s of commands before a span that set its lagged thrust
+        self.mass = self.model[kernel.P_M:kernel.P_M + 36].reshape(6, 6)
+        self.thrusts = CommandHistory(self.n)
+        size = self.n + 6
+        self.theta = np.zeros(size)
+        self.P = np.diag(np.r_[np.full(self.n, SPREAD_A ** 2), np.full(6, PRIOR_D ** 2)])
+        self.noise = np.full(6, NOISE_START)
+        self.known = np.ones(self.n)            # the effectiveness allocated with (faults already answered)
+        self.excluded = np.zeros(self.n, dtype=bool)
+        self._previous: tuple[float, np.ndarray] | None = None
+        self._first: float | None = None
+        self._quiet_until = -np.inf
+        self._below_since = np.full(self.n, np.nan)
+        self._d_history: list[tuple[float, np.ndarray]] = []
+        self._ws = np.zeros(60)
+        self._out = np.zeros(12)
+        self.residual = np.zeros(6)
+
+    @property
+    def effectiveness(self) -> np.ndarray:
+        """(n,) each thruster's estimated share of what it is told (1 healthy), relative to what is allocated."""
+        return 1.0 + self.theta[:self.n]
+
+    @property
+    def disturbance(self) -> np.ndarray:
+        return self.theta[self.n:].copy()
+
+    def told(self, t_act: float, thrusts: np.ndarray) -> None:
+        """Thrusts (n,) N the thrusters are told to give from vehicle time t_act (what each is expected to give:
+        scaled by the effectiveness it is allocated with)."""
+        self.thrusts.add(t_act, np.asarray(thrusts, dtype=float) * self.known)
+
+    def observe(self, t: float, x: np.ndarray) -> None:
+        """A new measured state x (12,) at vehicle time t."""
+        x = np.asarray(x, dtype=float)
+        if self._first is None:
+            self._first = t
+        previous = self._previous
+        if previous is not None and 0.0 < t - previous[0] < SPAN:
+            return                                  # within the span: the next residual starts from its start
+        self._previous = (t, x.copy())
+        if previous is None or t - previous[0] > MAX_HORIZON:
+            return
+        t0, x0 = previous
+        span = t - t0
+        lagged = self._lagged(t, span)
+        wrenches = np.ascontiguousarray(lagged @ self.matrix.T)
+        kernel.predict(self.model, x0, kernel.attitude_trig(x0), wrenches, len(wrenches) - 1, self.slot, span,
+                       np.zeros(6), self._out, self._ws)
+        self.residual = self.mass @ (x[6:] - self._out[6:]) / span
+        self._update(self.residual, _mean_over(lagged, span, self.slot), span)
+        self._d_history.append((t, self.disturbance))
+        while self._d_history and self._d_history[0][0] < t - 2 * MAX_HORIZON - CONFIRM:
+            self._d_history.pop(0)
+
+    def _lagged(self, end: float, span: float) -> np.ndarray:
+        """The thrusts told over the `span` s before `end`, per slot as `slot_means` gives them, through the
+        thrusters' first-order lag (started `settle` s earlier, from the oldest slot's value)."""
+        told = self.thrusts.slot_means(end, span + self.settle, self.slot)
+        if self.lag >= 1.0:
+            return told[-(int(np.ceil(span / self.slot)) + 1):]
+        out = np.empty_like(told)
+        y = told[0].copy()
+        for k in range(told.shape[0]):
+            y += (told[k] - y) * self.lag
+            out[k] = y
+        return out[-(int(np.ceil(span / self.slot)) + 1):]
+
+    def _update(self, r: np.ndarray, told: np.ndarray, span: float) -> None:
+        n = self.n
+        keep = np.exp(-span / MEMORY_A)             # a_i: an Ornstein-Uhlenbeck process about 0
+        self.theta[:n] *= keep
+        self.P[:n, :] *= keep
+        self.P[:, :n] *= keep
+        self.P[:n, :n] += np.eye(n) * SPREAD_A ** 2 * (1.0 - keep ** 2)
+        self.P[n:, n:] += np.eye(6) * DRIFT_D ** 2 * span
+        H = np.hstack([self.matrix * told, np.eye(6)])
+        innovation = r - H @ self.theta
+        S = H @ self.P @ H.T + np.diag(self.noise)
+        gain = np.linalg.solve(S, H @ self.P).T
+        self.theta += gain @ innovation
+        self.P -= gain @ H @ self.P
+        self.P = 0.5 * (self.P + self.P.T)
+        k = min(span / NOISE_TIME, 1.0)
+        squared = np.minimum(innovation ** 2, 9.0 * self.noise)   # a fault's transient does not drown the noise
+        self.noise = np.maximum(self.noise + k * (squared - self.noise), NOISE_FLOOR)
+
+    def verdicts(self, t: float) -> list[Verdict]:
+        """The thrusters newly found not to do what they are told (each named once; answer with `answered`)."""
+        if self._first is None or t - self._first < WARM_UP or t < self._quiet_until:
+            return []
+        g = self.effectiveness
+        sigma = np.sqrt(np.diag(self.P)[:self.n])
+        low = (g < HEALTHY) & (1.0 - g > CERTAIN * sigma) & ~self.excluded
+        if np.count_nonzero(g < HEALTHY) > 1:
+            low[:] = False       # several at once: a push the water gives (waves, a turn in a current), not a thruster
+        self._below_since = np.where(low, np.where(np.isnan(self._below_since), t, self._below_since), np.nan)
+        out = []
+        for i in np.flatnonzero(low & (t - self._below_since >= CONFIRM)):
+            out.append(self._verdict(i, float(g[i]), float(self._below_since[i]), t))
+        return out
+
+    def _verdict(self, i: int, g: float, since: float, t: float) -> Verdict:
+        effectiveness = g * self.known[i]
+        if effectiveness < REVERSED:
+            return Verdict(i + 1, "reversed", effectiveness, since)
+        if effectiveness >= DEAD:
+            return Verdict(i + 1, "weak", effectiveness, since)
+        push = self._push_along(i, since)
+        kind = "stuck" if abs(push) > STUCK_PUSH else "dead"
+        return Verdict(i + 1, kind, effectiveness, since, push)
+
+    def _push_along(self, i: int, since: float) -> float:
+        """The steady thrust along thruster i's column the disturbance took on since just before `since`."""
+        before = [d for t, d in self._d_history if t <= since - CONFIRM]
+        if not before:
+            return 0.0
+        column = self.matrix[:, i]
+        return float(column @ (self.disturbance - before[-1]) / (column @ column))
+
+    def answered(self, verdict: Verdict) -> None:
+        """The allocation now uses `verdict.gain` for the thruster: what it is told is scaled by it from now on.
+        Every thruster's estimate starts again from healthy (the others' moved to explain the fault's transient) and
+        no verdict comes for SETTLE s (a dead or stuck one is no longer told anything)."""
+        i, n = verdict.thruster - 1, self.n
+        self.known[i] = verdict.gain
+        self.excluded[i] = verdict.gain == 0.0
+        self.theta[:n] = 0.0
+        self.P[:n, :] = 0.0
+        self.P[:, :n] = 0.0
+        self.P[:n, :n] = np.eye(n) * SPREAD_A ** 2
+        self._below_since[:] = np.nan
+        if self._previous is not None:
+            self._quiet_until = self._previous[0] + SETTLE
+
+
+def _mean_over(ring: np.ndarray, span: float, slot: float) -> np.ndarray:
+    """The mean over the last `span` s of the per-slot values `CommandHistory.slot_means(end, span, slot)` gave
+    (oldest first; the oldest slots reach further back than `span`)."""
+    n = ring.shape[0]
+    ends = (n - 1 - np.arange(n)) * slot               # s before `end` at each slot's newer edge
+    overlap = np.clip(np.minimum(ends + slot, span) - ends, 0.0, slot)
+    return overlap @ ring / span
