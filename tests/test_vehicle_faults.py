@@ -1,0 +1,105 @@
+"""The vehicle-fault grammar (rov_mav.model.vehicle_faults): every item, what it means at a time, one-line errors,
+the YAML forms, and the environment's `vehicle_faults`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rov_mav.model.environment import load_environment
+from rov_mav.model.vehicle_faults import (
+    EXAMPLE,
+    VehicleFaultError,
+    VehicleFaults,
+    load_vehicle_faults,
+    parse_vehicle_faults,
+)
+
+
+def parse(text: str) -> VehicleFaults:
+    return parse_vehicle_faults(text.split(","))
+
+
+def test_the_example_parses_and_describes_itself_back():
+    faults = parse(EXAMPLE)
+    assert parse(faults.describe()) == faults
+    assert faults.reboots == (90.0,) and faults.leak == 100.0 and faults.depth_sensor == 50.0
+    assert faults.battery == (0.05, 0.0) and faults.navigation_lost == ((30.0, 10.0),)
+    assert faults.autopilot_faults == ["reboot", "leak", "battery", "navigation-lost", "depth-sensor"]
+    assert bool(faults) and not VehicleFaults() and VehicleFaults().describe() == "none"
+
+
+def test_thruster_effects_over_time_a_later_fault_replaces_an_earlier_one():
+    faults = parse("thruster=3:weak=0.4@10s,thruster=3:dead@20s,thruster=5:stuck=1700@5s,thruster=8:reversed@1s")
+    gain, stuck = faults.thruster_effect(0.5)
+    assert np.all(gain == 1) and np.all(np.isnan(stuck))
+    gain, stuck = faults.thruster_effect(12.0)
+    assert gain[2] == pytest.approx(0.4) and gain[7] == -1 and gain[4] == 1 and stuck[4] == 1700
+    assert np.isnan(np.delete(stuck, 4)).all()
+    gain, _ = faults.thruster_effect(20.0)
+    assert gain[2] == 0
+    assert faults.thruster_times() == (1.0, 5.0, 10.0, 20.0)
+
+
+def test_events_in_time():
+    faults = parse("reboot@90s,reboot@30s,leak@100s,battery=0.1V/s@10s,navigation-lost@30s+10s,"
+                   "navigation-lost@60s,depth-sensor@500ms")
+    assert faults.reboots == (30.0, 90.0)                           # sorted, repeatable
+    assert not faults.leaking(99.9) and faults.leaking(100.0)
+    assert faults.battery_sag(5.0) == 0 and faults.battery_sag(20.0) == pytest.approx(1.0)
+    assert faults.navigation_ok(29.9) and not faults.navigation_ok(35.0) and faults.navigation_ok(40.0)
+    assert not faults.navigation_ok(1e6)                            # without +D: for good
+    assert faults.navigation_lost[1] == (60.0, math.inf)
+    assert faults.depth_sensor_ok(0.4) and not faults.depth_sensor_ok(0.5)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("thruster=9:dead@3s", "N from 1 to 8"),
+    ("thruster=3:broken@3s", "unknown thruster fault 'broken'"),
+    ("thruster=3:stuck=2500@3s", "PWM from 1100 to 1900"),
+    ("thruster=3:weak=1.5@3s", "0 < K < 1"),
+    ("thruster=3:dead=2@3s", "'dead' takes no value"),
+    ("thruster=3:dead", "thruster=N:KIND@TIME"),
+    ("reboot@soon", "a time of 0 or more with its unit"),
+    ("reboot", "reboot@TIME"),
+    ("leak@3s,leak@4s", "leak is given twice"),
+    ("battery=fast", "RATE in volts per second"),
+    ("battery=20V/s", "at most 10"),
+    ("navigation-lost@3s+0s", "more than 0 s"),
+    ("explode@3s", "unknown vehicle fault 'explode@3s'"),
+])
+def test_malformed_items_are_one_line_errors_naming_the_item(text, words):
+    with pytest.raises(VehicleFaultError) as info:
+        parse(text)
+    message = str(info.value)
+    assert words in message and "\n" not in message
+
+
+def test_files_hold_vehicle_faults_as_text_or_a_list(tmp_path):
+    as_text = tmp_path / "text.yaml"
+    as_text.write_text('vehicle_faults: "thruster=2:dead@1s,reboot@5s"\n')
+    as_list = tmp_path / "list.yaml"
+    as_list.write_text("vehicle_faults:\n  - thruster=2:dead@1s\n  - reboot@5s\n")
+    assert load_vehicle_faults(str(as_text)) == load_vehicle_faults(str(as_list)) == parse("thruster=2:dead@1s,reboot@5s")
+    assert load_vehicle_faults("leak@3s") == parse("leak@3s")
+    missing = tmp_path / "none.yaml"
+    missing.write_text("other: 1\n")
+    with pytest.raises(VehicleFaultError, match="vehicle_faults: missing"):
+        load_vehicle_faults(str(missing))
+    bad = tmp_path / "bad.yaml"
+    bad.write_text('vehicle_faults: "leak@never"\n')
+    with pytest.raises(VehicleFaultError, match=f"^{bad}: leak@never"):
+        load_vehicle_faults(str(bad))
+    with pytest.raises(VehicleFaultError, match="no such file"):
+        load_vehicle_faults(str(tmp_path / "absent.yaml"))
+
+
+def test_an_environment_carries_its_vehicle_faults(tmp_path):
+    path = tmp_path / "env.yaml"
+    path.write_text("environment:\n  vehicle_faults: [thruster=1:reversed@2s, leak@9s]\n")
+    assert load_environment(path).vehicle_faults == parse("thruster=1:reversed@2s,leak@9s")
+    path.write_text("environment:\n  vehicle_faults: thruster=0:dead@2s\n")
+    with pytest.raises(Exception, match="N from 1 to 8"):
+        load_environment(path)
