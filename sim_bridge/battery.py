@@ -1,6 +1,7 @@
 """A simple battery: open-circuit voltage from the state of charge, minus an internal-resistance drop.
 
-Shape of a 4S Li-ion pack (Blue Robotics 14.8 V, 18 Ah), scaled so that a full pack reads `full_voltage`.
+Shape of a 4S Li-ion pack (Blue Robotics 14.8 V, 18 Ah), scaled so that a full pack reads `full_voltage`. A failing
+pack (a `battery=RATE@T` vehicle fault) sags `sag` volts more at its terminals (never below 0 V).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ class Battery:
         self.capacity_ah = capacity_ah
         self.consumed_ah = 0.0
         self.current = HOTEL_CURRENT
+        self.sag = 0.0
         self.voltage = self._terminal()
 
     @property
@@ -35,6 +37,12 @@ class Battery:
         self.consumed_ah += self.current * dt / 3600.0
         self.voltage = self._terminal()
 
+    def set_sag(self, volts: float) -> None:
+        """The fault's extra sag from now on, V."""
+        if volts != self.sag:
+            self.sag = volts
+            self.voltage = self._terminal()
+
     def _terminal(self) -> float:
         ocv = float(np.interp(self.remaining, _SOC, _OCV)) * self.full_voltage / _OCV[-1]
-        return ocv - INTERNAL_RESISTANCE * self.current
+        return max(ocv - INTERNAL_RESISTANCE * self.current - self.sag, 0.0)

@@ -1,6 +1,10 @@
 """The simulated vehicle's hardware: 8 PWM -> thrust at the battery voltage (the vehicle file's thruster map: the T200
 data, or a quadratic law) -> first-order lag -> body wrench tau = B f -> the shared 6-DOF plant; the battery is
 drained by the thrusters' current.
+
+Thruster faults (`rov_mav.model.vehicle_faults`, `thruster_effect(t)` at the step's vehicle time): a stuck ESC takes
+its stuck PWM whatever it is sent (even no pulse); the thrust is multiplied by the thruster's gain: 0 for a dead one
+(which draws no current either), K for a weak one, -1 for a reversed one (these two draw what they are told).
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import numpy as np
 
 from rov_mav.model.thrusters import ThrusterMap, allocation_matrix
 from rov_mav.model.vehicle import Vehicle
+from rov_mav.model.vehicle_faults import VehicleFaults
 from sim_bridge.battery import Battery
 
 VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery voltage rounded to this
@@ -20,8 +25,13 @@ NO_PULSE_BELOW = 800            # us: an output this low (0 = unassigned) sends 
 class Physics:
     """Advances `plant` (the shared rov_mav Plant) by fixed steps of `h` s under 8 thruster PWMs."""
 
-    def __init__(self, vehicle: Vehicle, plant, battery: Battery, t200: ThrusterMap, h: float):
+    def __init__(self, vehicle: Vehicle, plant, battery: Battery, t200: ThrusterMap, h: float,
+                 faults: VehicleFaults | None = None):
         self.plant = plant
+        self.faults = faults if faults is not None and faults.thrusters else None
+        self._changes = list(faults.thruster_times()) if self.faults is not None else []
+        self._gain = np.ones(8)
+        self._stuck = np.full(8, np.nan)
         self.battery = battery
         self.t200 = t200
         self.h = h
@@ -34,15 +44,21 @@ class Physics:
         self._commanded = np.zeros(8)
         self._current = 0.0
 
-    def step(self, pwm: np.ndarray) -> None:
-        """One step of h seconds with thruster PWMs (8,) in us held."""
+    def step(self, pwm: np.ndarray, t: float = 0.0) -> None:
+        """One step of h seconds with thruster PWMs (8,) in us held, from vehicle time t (for the faults)."""
+        changed = False
+        while self._changes and t >= self._changes[0]:
+            self._changes.pop(0)
+            self._gain, self._stuck = self.faults.thruster_effect(t)
+            changed = True
         voltage = round(self.battery.voltage / VOLTAGE_RESOLUTION) * VOLTAGE_RESOLUTION
         key = (pwm.tobytes(), voltage)
-        if key != self._key:                    # the T200 map only when the PWMs or the voltage changed
+        if key != self._key or changed:         # the T200 map only when the PWMs, voltage or faults changed
             self._key = key
-            pulses = np.where(pwm < NO_PULSE_BELOW, 1500, pwm)
-            self._commanded = self.t200.thrust(pulses, voltage)
-            self._current = float(np.sum(self.t200.current(pulses, voltage)))
+            pulses = np.where(pwm < NO_PULSE_BELOW, 1500, pwm).astype(float)
+            pulses = np.where(np.isnan(self._stuck), pulses, self._stuck)
+            self._commanded = self.t200.thrust(pulses, voltage) * self._gain
+            self._current = float(np.sum(self.t200.current(pulses, voltage) * (self._gain != 0)))
         self.thrusts += (self._commanded - self.thrusts) * self._lag
         self.tau = self.matrix @ self.thrusts
         self.plant.step(self.tau, self.h)
