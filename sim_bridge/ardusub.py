@@ -17,13 +17,17 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   (1500 us when disarmed), limited to MOT_PWM_MIN..MAX, or RC3_MIN..MAX when those two are invalid
   (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE,
   ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, in GUIDED through `guided`'s position
-  controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`. GUIDED
-  needs a position estimate (`ModeGuided::init`): the bridge always has one.
+  controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`; SURFACE as
+  `sim_bridge.surface`. Mode changes pass `Sub::set_mode`'s gates (`sim_bridge.modes`): GUIDED and POSHOLD need
+  `Sub::position_ok` (the EKF's, from `sensors`, and no EKF failsafe), ALT_HOLD a working depth sensor.
 - Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
   channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
 - GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
-  from the GCS sysid, while armed: warn (1), disarm (2), hold (3: POSHOLD) or surface (4: SURFACE, refused here, so
-  disarm as ArduSub does when that mode change fails).
+  from the GCS sysid, while armed: warn (1), disarm (2), hold (3: ALT_HOLD) or surface (4: SURFACE), disarming if
+  that mode change is refused (`Sub::failsafe_gcs_check`, 4.5 and 4.7).
+- Leak, battery, EKF and depth-sensor failsafes: `sim_bridge.failsafes`, on the `sensors` given to `update`.
+- HEARTBEAT system_status (`GCS_MAVLINK_Sub::vehicle_system_status`): CRITICAL while a failsafe of
+  `any_failsafe_triggered` is set, else ACTIVE armed, BOOT until initialised (`ap.initialised`), STANDBY.
 - Motor test (MAV_CMD_DO_MOTOR_TEST, ArduSub/motors.cpp `handle_do_motor_test`, `init_motor_test`,
   `verify_motor_test`; AP_MotorsMatrix `output_test_num`): from any sysid; needs the vehicle armed, no failed start
   in the last 2 s (nor in the first 2 s after boot) and no timeout in the last 10 s; test type BOARD (2) only; param1
@@ -36,21 +40,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_bridge import joystick, mixer
+from sim_bridge import joystick, mixer, modes, surface
+from sim_bridge.failsafes import Failsafes, Sensors
 from sim_bridge.guided import Guided
+from sim_bridge.modes import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
 from sim_bridge.numeric import f32, float_to_int, is_equal
 from sim_bridge.params import Params
 from sim_bridge.rc import RCInput
 from sim_bridge.stabilize import ASSISTED, Holds
 
-MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRCLE": 7, "SURFACE": 9,
-         "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
-MODE_NAMES = {number: name for name, number in MODES.items()}
-SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL", "GUIDED")})
-GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
-
 MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
-MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 3, 4, 5
+MAV_STATE_BOOT, MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 3, 4, 5
 MAV_SEVERITY_CRITICAL, MAV_SEVERITY_WARNING, MAV_SEVERITY_INFO = 2, 4, 6
 FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 2, 3, 4        # 1: warn only
 FS_PILOT_DISARM = 2
@@ -78,7 +78,7 @@ class ArduSub:
 
     def __init__(self, params: Params, t: float = 0.0):
         self.params = params
-        self.sysid = params.sysid
+        self.sysid = params.sysid & 0xFF                # `mavlink_system.sysid` is a uint8_t
         self.joystick_gain = joystick.joystick_gain(params["JS_GAIN_DEFAULT"], params["JS_GAIN_MIN"],
                                                     params["JS_GAIN_MAX"], params["JS_GAIN_STEPS"])
         self._lights = (int(params["RC9_MIN"]), int(params["RC10_MIN"]))
@@ -105,6 +105,12 @@ class ArduSub:
         self._test_start_failed = t                   # ArduSub's static starts at 0: boot
         self._test_timed_out: float | None = None
         self._t = t
+        self.initialised = True                       # `ap.initialised`: the bridge clears it while booting
+        self.sensors = Sensors()
+        self.position_ok_flags = (True, True)         # the EKF's (armed, disarmed) position_ok
+        self.failsafes = Failsafes(t)
+        self.surface = surface.SurfaceDetector()
+        self._nobaro = False                          # SURFACE entered without a depth sensor (4.7)
 
     # -- inputs ----------------------------------------------------------------------------------------------
 
@@ -145,13 +151,17 @@ class ArduSub:
         return MAV_RESULT_ACCEPTED
 
     def set_mode(self, custom_mode: int) -> bool:
-        """Change mode (ArduSub/mode.cpp, `Sub::set_mode`); False and a warning for a mode ArduSub does not have or
-        this vehicle cannot enter."""
-        if custom_mode not in SUPPORTED_MODES:
-            name = MODE_NAMES.get(custom_mode)
-            self.texts.append((MAV_SEVERITY_WARNING, f"No such mode {custom_mode}" if name is None else
-                               f"Flight mode change failed {name}"))
+        """Change mode (ArduSub/mode.cpp, `Sub::set_mode`); False and its warnings when refused
+        (`sim_bridge.modes`)."""
+        if custom_mode == self.mode:
+            return True
+        depth_present, depth_failsafe = self.sensors.depth_present, self.failsafes.depth
+        refused = modes.refusal(custom_mode, self.params.firmware, self.position_ok(), depth_present, depth_failsafe)
+        if refused:
+            self.texts += [(MAV_SEVERITY_WARNING, text) for text in refused]
             return False
+        if custom_mode == MODES["SURFACE"]:
+            self._nobaro = modes.barometer_refusal(depth_present, depth_failsafe) is not None
         if custom_mode != self.mode:
             self.holds.reset()
             self.guided.reset()
@@ -218,22 +228,38 @@ class ArduSub:
 
     # -- time ------------------------------------------------------------------------------------------------
 
-    def update(self, t: float, state: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        """One main-loop pass at time t: RC input, the failsafes, then the assisted modes' holds on `state`, the
-        attitude and position estimate (eta, nu)."""
+    def position_ok(self) -> bool:
+        """`Sub::position_ok`: no EKF failsafe, and the EKF's position (absolute when armed, predicted when not)."""
+        return not self.failsafes.ekf and self.position_ok_flags[0 if self.armed else 1]
+
+    def update(self, t: float, state: tuple[np.ndarray, np.ndarray] | None = None,
+               sensors: Sensors | None = None) -> None:
+        """One main-loop pass at time t: RC input, the failsafes (on the latest `sensors` given), then the assisted
+        modes' holds on `state`, the attitude and position estimate (eta, nu)."""
         dt, self._t = t - self._t, t
         self.rc.update(t, self.params["RC_OVERRIDE_TIME"])
         self._pilot_input_check(t)
+        if sensors is not None:
+            self.sensors = sensors
+        self.failsafes.update(self, t, self.sensors)
         if t >= self._next_gcs_check:
             self._next_gcs_check = t + GCS_CHECK_PERIOD
             self._gcs_check(t)
         self._verify_motor_test(t)
         self._held = None
         self._state = state
+        depth_ok = self.sensors.depth_present and not self.failsafes.depth
+        at_surface = self.surface.update(self.armed, float(state[0][2]) if depth_ok and state else None, self.params)
         if not self.armed or state is None:
             return
+        if self.mode == MODES["SURFACE"] and at_surface and not self._nobaro:
+            self.set_mode(MODES["ALT_HOLD"])                  # ModeReason::SURFACE_COMPLETE
         if self.mode in ASSISTED:
-            axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt)
+            floor = surface.surface_depth(self.params) if at_surface else None
+            axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt, climb=surface.climb_rate(self.params),
+                                   min_depth=floor, position_ok=self.position_ok())
+            if self.mode == MODES["SURFACE"] and self._nobaro:
+                axes[3] = surface.nobaro_throttle(self.params)
         elif self.mode == MODES["GUIDED"]:
             axes = self.guided.axes(self.params, *state, t, dt)
         else:
@@ -288,10 +314,9 @@ class ArduSub:
         self.failsafe_gcs = True
         if action == FS_GCS_DISARM:
             self.arm(False)
-        elif action == FS_GCS_HOLD:
-            self.set_mode(MODES["POSHOLD"])
-        elif action == FS_GCS_SURFACE and not self.set_mode(MODES["SURFACE"]):
-            self.arm(False)
+        elif action in (FS_GCS_HOLD, FS_GCS_SURFACE):
+            if not self.set_mode(MODES["ALT_HOLD" if action == FS_GCS_HOLD else "SURFACE"]):
+                self.arm(False)
 
     # -- outputs ---------------------------------------------------------------------------------------------
 
@@ -354,7 +379,9 @@ class ArduSub:
         return mode
 
     def system_status(self) -> int:
-        """HEARTBEAT system_status: CRITICAL in any failsafe, else ACTIVE armed, STANDBY disarmed."""
-        if self.failsafe_gcs or self.failsafe_pilot:
+        """HEARTBEAT system_status: CRITICAL in any failsafe, else ACTIVE armed, BOOT initialising, STANDBY."""
+        if self.failsafe_gcs or self.failsafe_pilot or self.failsafes.triggered(self.params.firmware):
             return MAV_STATE_CRITICAL
-        return MAV_STATE_ACTIVE if self.armed else MAV_STATE_STANDBY
+        if self.armed:
+            return MAV_STATE_ACTIVE
+        return MAV_STATE_STANDBY if self.initialised else MAV_STATE_BOOT

@@ -3,6 +3,10 @@
 ArduSub 4.7 renamed SYSID_MYGCS -> MAV_GCS_SYSID, SYSID_THISMAV -> MAV_SYSID and the stream rates SRn_* (n from 0)
 -> MAV{n+1}_*. `Params(firmware)` holds one of the two name sets; `Params.names` maps the roles the bridge reads
 to the names that firmware uses. SIM_* are the simulation's own settings (as in ArduPilot's SITL).
+
+Each value is also kept as stored (the flight controller's EEPROM): a PARAM_SET stores what it sets
+(GCS_Param.cpp, `handle_param_set` saves), a REQUEST_DATA_STREAM only sets the rate in RAM (`handle_request_data_stream`
+saves only when `persist_streamrates()`, which Sub does not override: false), and `reboot()` loads the stored values.
 """
 
 from __future__ import annotations
@@ -99,6 +103,7 @@ def _table(names: Names) -> list[Spec]:
         Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run
     ]
     specs += [Spec(name, value, REAL32) for name, value in GUIDED_DEFAULTS.items()]
+    specs += _failsafe_table(names)
     for channel in range(CHANNELS):
         specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]
     specs += [
@@ -106,6 +111,30 @@ def _table(names: Names) -> list[Spec]:
         Spec("SIM_BATT_VOLTAGE", 16.8, REAL32),
         Spec("SIM_BATT_CAP_AH", 18.0, REAL32),
     ]
+    return specs
+
+
+def _failsafe_table(names: Names) -> list[Spec]:
+    """The leak, EKF, battery-monitor and SURFACE parameters (`sim_bridge.failsafes`, `sim_bridge.surface`), with
+    Sub's defaults: ArduSub/Parameters.cpp and defines.h (FS_LEAK_ENABLE 1 warn only, FS_EKF_ACTION 0 disabled,
+    SURFACE_DEPTH -10 cm), AP_BattMonitor_Params.cpp (BATT_LOW_VOLT 0 outside Copter: no battery failsafe by default,
+    BATT_LOW_TIMER 10 s), AC_WPNav's WPNAV_SPEED_UP (above) capped by PILOT_SPEED_UP."""
+    specs = [
+        Spec("FS_LEAK_ENABLE", 1, INT8),               # 0 off, 1 warn only, 2 SURFACE
+        Spec("FS_EKF_ACTION", 0, INT8),                # 0 off, 1 warn only, 2 disarm
+        Spec("FS_EKF_THRESH", 0.8, REAL32),
+        Spec("BATT_LOW_TIMER", 10, INT8),              # s; 0: no voltage failsafe
+        Spec("BATT_LOW_VOLT", 0.0, REAL32),            # V; 0: off
+        Spec("BATT_LOW_MAH", 0.0, REAL32),
+        Spec("BATT_CRT_VOLT", 0.0, REAL32),
+        Spec("BATT_CRT_MAH", 0.0, REAL32),
+        Spec("BATT_FS_LOW_ACT", 0, INT8),              # Sub: 0 none, 1 warn, 2 disarm, 3 SURFACE
+        Spec("BATT_FS_CRT_ACT", 0, INT8),
+        Spec("SURFACE_DEPTH", -10.0, REAL32),          # cm (negative: below the surface)
+        Spec("PILOT_SPEED_UP", 500, INT16),            # cm/s (ArduSub/config.h PILOT_VELZ_MAX)
+    ]
+    if names.sysid == "MAV_SYSID":                     # 4.7 (PR #29996): SURFACE without a depth sensor
+        specs.append(Spec("SFC_NOBARO_THST", 10, INT8))    # % throttle up, -100..100
     return specs
 
 
@@ -131,6 +160,7 @@ class Params:
         self.specs = _table(self.names)
         self._index = {s.name: i for i, s in enumerate(self.specs)}
         self._values = {s.name: float(s.default) for s in self.specs}
+        self._stored = dict(self._values)
         self.version = 0                     # counts changes, for readers that cache derived values
 
     def __len__(self) -> int:
@@ -145,17 +175,25 @@ class Params:
     def index(self, name: str) -> int:
         return self._index[name]
 
-    def set(self, name: str, value: float) -> float | None:
+    def set(self, name: str, value: float, save: bool = True) -> float | None:
         """Apply a PARAM_SET as ArduSub does: the stored value, or None (nothing stored, no reply) for unknown names,
-        NaN or infinity (libraries/GCS_MAVLink/GCS_Param.cpp, `handle_param_set`) and values beyond float32."""
+        NaN or infinity (libraries/GCS_MAVLink/GCS_Param.cpp, `handle_param_set`) and values beyond float32.
+        `save=False` sets it in RAM only (lost at the next `reboot`)."""
         if name not in self._index or not math.isfinite(value):
             return None
         stored = stored_value(value, self.specs[self._index[name]].ptype)
         if not math.isfinite(stored):
             return None
         self._values[name] = stored
+        if save:
+            self._stored[name] = stored
         self.version += 1
         return stored
+
+    def reboot(self) -> None:
+        """Boot again: every value as stored (`AP_Param::load_all`)."""
+        self._values = dict(self._stored)
+        self.version += 1
 
     @property
     def gcs_sysid(self) -> int:

@@ -5,7 +5,10 @@ Stand-ins for ArduSub's cascaded controllers, with the same division of labour (
   when centred); throttle, forward and lateral pass straight to the mixer.
 - ACRO: roll, pitch and yaw sticks command body rates.
 - ALT_HOLD: as STABILIZE, and depth held while the throttle stick is centred (a climb rate otherwise).
-- POSHOLD: as ALT_HOLD, and horizontal position held while the forward and lateral sticks are centred.
+- POSHOLD: as ALT_HOLD, and horizontal position held while the forward and lateral sticks are centred; without a
+  position estimate the forward and lateral sticks pass straight through (`ModePoshold::control_horizontal`).
+- SURFACE: as ALT_HOLD with the depth target rising at a given climb rate whatever the throttle stick, at most
+  LEASH above the vehicle (a stand-in for the position controller's limited error) (`sim_bridge.surface`).
 All work in the mixer's normalised axes (roll, pitch, yaw, throttle, forward, lateral), each clamped to [-1, 1].
 """
 
@@ -17,8 +20,9 @@ import numpy as np
 
 from rov_mav.units import wrap_angle
 
-STABILIZE, ACRO, ALT_HOLD, POSHOLD = 0, 1, 2, 16
-ASSISTED = frozenset({STABILIZE, ACRO, ALT_HOLD, POSHOLD})
+STABILIZE, ACRO, ALT_HOLD, SURFACE, POSHOLD = 0, 1, 2, 9, 16
+ASSISTED = frozenset({STABILIZE, ACRO, ALT_HOLD, SURFACE, POSHOLD})
+DEPTH_HOLDING = frozenset({ALT_HOLD, SURFACE, POSHOLD})
 DEAD_ZONE = 0.05               # stick deflection (of 1) treated as centred
 MAX_LEAN = math.radians(45)    # rad at full roll/pitch stick
 MAX_RATE = math.radians(90)    # rad/s at full stick (yaw in STABILIZE, all axes in ACRO)
@@ -28,6 +32,7 @@ RATE_P = 0.9                   # per rad/s of body-rate error (rate commands)
 DEPTH_P, DEPTH_I, DEPTH_D = 0.5, 0.2, 0.5              # per m, per m s, per m/s
 POSITION_P, POSITION_I, POSITION_D = 0.3, 0.05, 0.5
 INTEGRAL_LIMIT = 0.3           # largest share of an axis the integrators may hold
+LEASH = 1.0                    # m: how far a climbing depth target may lead the vehicle
 
 
 def _clamp(a: float) -> float:
@@ -49,8 +54,10 @@ class Holds:
         self.depth_integral = 0.0
         self.integral = [0.0, 0.0]                   # of the position error, body axes
 
-    def axes(self, mode: int, pilot, eta: np.ndarray, nu: np.ndarray, dt: float) -> list[float]:
-        """Mixer axes (6,) for `mode` from the pilot's axes (6,) and the vehicle's eta, nu (6,)."""
+    def axes(self, mode: int, pilot, eta: np.ndarray, nu: np.ndarray, dt: float, climb: float = 0.0,
+             min_depth: float | None = None, position_ok: bool = True) -> list[float]:
+        """Mixer axes (6,) for `mode` from the pilot's axes (6,) and the vehicle's eta, nu (6,); SURFACE's `climb`
+        (m/s up), the shallowest depth target allowed (m), whether there is a position to hold."""
         roll, pitch, yaw, throttle, forward, lateral = (float(a) for a in pilot)
         phi, theta, psi = eta[3:6]
         p, q, r = nu[3:6]
@@ -65,18 +72,25 @@ class Holds:
             out[2] = RATE_P * (yaw * MAX_RATE - r)
         else:
             out[2] = ANGLE_P * wrap_angle(self.heading - psi) - RATE_D * r
-        if mode in (ALT_HOLD, POSHOLD):
-            out[3] = self._depth(throttle, eta, nu, dt)
-        if mode == POSHOLD:
+        if mode in DEPTH_HOLDING:
+            out[3] = self._depth(throttle, eta, nu, dt, climb if mode == SURFACE else None, min_depth)
+        if mode == POSHOLD and position_ok:
             out[4], out[5] = self._position(forward, lateral, eta, nu, dt)
+        elif mode == POSHOLD:
+            self.position = None
         return [_clamp(a) for a in out]
 
-    def _depth(self, throttle: float, eta: np.ndarray, nu: np.ndarray, dt: float) -> float:
+    def _depth(self, throttle: float, eta: np.ndarray, nu: np.ndarray, dt: float, climb: float | None = None,
+               min_depth: float | None = None) -> float:
         """Throttle axis (up positive) holding or moving the depth target; eta[2] and the target are depths."""
         if self.depth is None:
             self.depth = float(eta[2])
-        if abs(throttle) > DEAD_ZONE:
+        if climb is not None:
+            self.depth = max(self.depth - climb * dt, float(eta[2]) - LEASH)
+        elif abs(throttle) > DEAD_ZONE:
             self.depth -= throttle * MAX_CLIMB * dt
+        if min_depth is not None:
+            self.depth = max(self.depth, min_depth)
         error = self.depth - float(eta[2])
         self.depth_integral = min(max(self.depth_integral + DEPTH_I * error * dt, -INTEGRAL_LIMIT), INTEGRAL_LIMIT)
         cf, sf, ct, st = math.cos(eta[3]), math.sin(eta[3]), math.cos(eta[4]), math.sin(eta[4])

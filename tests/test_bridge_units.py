@@ -211,7 +211,7 @@ def test_pilot_input_failsafe_fires_at_boot_and_only_once():
     assert sub.armed and sub.texts.count((2, "Lost manual control")) == 1
 
 
-@pytest.mark.parametrize("action, armed, mode", [(1, True, 19), (2, False, 19), (3, True, 16), (4, False, 19)])
+@pytest.mark.parametrize("action, armed, mode", [(1, True, 19), (2, False, 19), (3, True, 2), (4, True, 9)])
 def test_gcs_failsafe_actions(action, armed, mode):
     params = Params()
     params.set("FS_PILOT_INPUT", 0)
