@@ -1,4 +1,5 @@
-"""What a bridge is started with: endpoints, speedup, firmware naming, environment, start state, link faults."""
+"""What a bridge is started with: endpoints, speedup, firmware naming, environment, start state, link and vehicle
+faults."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rov_mav.model.environment import Environment
+    from rov_mav.model.vehicle_faults import VehicleFaults
     from sim_bridge.faults import FaultSpec
 
 DEFAULT_OUT = "udpout:127.0.0.1:14550"
@@ -28,5 +30,6 @@ class BridgeConfig:
     step: float = DEFAULT_STEP
     seed: int = 0                                     # of the sensor noise and the link faults
     faults: FaultSpec | None = None                   # degrade the links on purpose (sim_bridge/faults.py)
+    vehicle_faults: VehicleFaults | None = None       # None: the environment's (sim_bridge/vehicle_faults.py)
     params: dict[str, float] = field(default_factory=dict)
     signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key

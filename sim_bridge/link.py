@@ -220,6 +220,16 @@ class Link:
         peer.sock.close()
         self.peers.remove(peer)
 
+    def restart(self, sysid: int) -> None:
+        """The autopilot booted again: its sequence numbers restart at 0, under `sysid` (the stored one)."""
+        self.encoder.seq = 0
+        self.encoder.srcSystem = sysid
+
+    def drop_clients(self) -> None:
+        """Close every accepted TCP client, as an autopilot restarting does (UDP peers are kept)."""
+        for peer in [p for p in self.peers if p.sock is not None]:
+            self._drop(peer)
+
     def close(self) -> None:
         for peer in self.peers:
             if peer.sock is not None:

@@ -34,6 +34,8 @@ UINT16_MAX = 65535
 FTP_ACK, FTP_NAK = 128, 129
 FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
 FTP_ERR_UNKNOWN_COMMAND, FTP_ERR_FILE_NOT_FOUND = 7, 10
+COMPID = 1
+FORCE_REBOOT = 20190226          # the magic that reboots an armed vehicle (PR #22325)
 
 
 class Protocol:
@@ -48,6 +50,7 @@ class Protocol:
         self.snapshot = snapshot
         self.on_params_changed = on_params_changed
         self.signing = signing
+        self.reboot_requested = False          # by MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, for the bridge to act on
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
         """Replies to one message received on link `channel` at sim time t."""
@@ -120,6 +123,9 @@ class Protocol:
         elif cmd == mavlink.MAV_CMD_DO_MOTOR_TEST:          # param6 becomes COMMAND_INT's int32 y
             y = msg.y if msg.get_type() == "COMMAND_INT" else float_to_int(msg.param6)
             result = self.vehicle.motor_test(p1, p2, msg.param3, y, t)
+        elif cmd == mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:       # param6 becomes COMMAND_INT's int32 y
+            y = msg.y if msg.get_type() == "COMMAND_INT" else float_to_int(msg.param6)
+            result = self._reboot(msg.target_component, p1, p2, msg.param3, y)
         elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             result, after = (self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) if is_equal(p1, 1.0)
                              else (MAV_RESULT_FAILED, []))
@@ -127,6 +133,22 @@ class Protocol:
             result = MAV_RESULT_UNSUPPORTED
         ack = ENCODER.command_ack_encode(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         return before + [(ack, False)] + after
+
+    def _reboot(self, target_component: int, p1: float, p2: float, p3: float, y: int) -> int:
+        """`GCS_MAVLINK::handle_preflight_reboot`: DENIED for another component; the 42/24/71 test actions are not
+        emulated (UNSUPPORTED); FAILED while armed unless y (COMMAND_LONG param6) is 20190226; param1 1 (reboot) or
+        3 (a board would stay in its bootloader; this vehicle reboots, as SITL does) is ACCEPTED and `reboot_requested` set, for the bridge to
+        cut the power once the ACK is out; anything else UNSUPPORTED."""
+        if target_component not in (0, COMPID):
+            return MAV_RESULT_DENIED
+        if is_equal(p1, 42.0) and is_equal(p2, 24.0) and is_equal(p3, 71.0):
+            return MAV_RESULT_UNSUPPORTED
+        if self.vehicle.armed and y != FORCE_REBOOT:
+            return MAV_RESULT_FAILED
+        if not (is_equal(p1, 1.0) or is_equal(p1, 3.0)):
+            return MAV_RESULT_UNSUPPORTED
+        self.reboot_requested = True
+        return MAV_RESULT_ACCEPTED
 
     def _arm_disarm(self, param1: float) -> int:
         """`GCS_MAVLINK::handle_command_component_arm_disarm`: param1 equal to 1 (within float32's epsilon) arms,
@@ -159,11 +181,13 @@ class Protocol:
 
     def _request_message(self, msg_id: int) -> tuple[int, list[Reply]]:
         """`GCS_MAVLINK::handle_command_request_message`: the message once, or FAILED for one this vehicle does not
-        send."""
+        send (ACCEPTED and nothing, as ArduPilot's `try_send_message`, for one it cannot fill now, such as
+        LOCAL_POSITION_NED without a position)."""
         name = telemetry.NAME_OF_ID.get(msg_id)
         if name is None:
             return MAV_RESULT_FAILED, []
-        return MAV_RESULT_ACCEPTED, [(telemetry.BUILDERS[name](self.snapshot()), False)]
+        msg = telemetry.BUILDERS[name](self.snapshot())          # None: not available now (ACCEPTED, not sent)
+        return MAV_RESULT_ACCEPTED, [] if msg is None else [(msg, False)]
 
     def _set_mode(self, base_mode: int, custom_mode: int) -> int:
         """`GCS_MAVLINK::_set_mode_common`: with the custom-mode flag, the custom mode as the uint8_t
@@ -204,14 +228,15 @@ class Protocol:
 
     def _request_data_stream(self, msg, channel: int, t: float) -> None:
         """`GCS_MAVLINK::handle_request_data_stream`: start_stop 1 sets the rate (uint16 read as int16), 0 sets 0,
-        anything else is ignored; stream 0 sets every group but PARAMS, unknown streams nothing."""
+        anything else is ignored; stream 0 sets every group but PARAMS, unknown streams nothing. Not saved
+        (`persist_streamrates()` is false for Sub): a reboot brings back the stored rates."""
         if msg.start_stop not in (0, 1):
             return
         groups = tuple(g for g in STREAM_GROUPS if g != "PARAMS") if msg.req_stream_id == 0 else \
             schedule.DATA_STREAM_GROUPS.get(msg.req_stream_id, ())
         rate = wrap(msg.req_message_rate, 16) if msg.start_stop else 0
-        for group in groups:
-            self.params.set(self.params.names.stream(channel, group), rate)
+        for group in groups:                   # in RAM only: Sub does not persist stream rates
+            self.params.set(self.params.names.stream(channel, group), rate, save=False)
         self.on_params_changed(t)
 
     # -- MAVLink FTP -----------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ STREAMS = {
     "POSITION": ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     "EXTRA1": ("ATTITUDE",),
     "EXTRA2": ("VFR_HUD",),
-    "EXTRA3": ("SYSTEM_TIME", "BATTERY_STATUS"),
+    "EXTRA3": ("SYSTEM_TIME", "BATTERY_STATUS", "EKF_STATUS_REPORT"),
 }
 GROUP_OF = {name: group for group, names in STREAMS.items() for name in names}
 # MAV_DATA_STREAM ids of REQUEST_DATA_STREAM -> stream groups (0 = all).

@@ -1,8 +1,16 @@
 """The bridge: the emulated ArduSub, its physics and its MAVLink links in one paced loop.
 
-Each step of h simulated seconds: ArduSub's main loop (RC input, failsafes) -> servo outputs -> physics -> the
-telemetry due on each link. Between steps the loop reads the links and sleeps until the next step is due on the
-wall clock (`Pacer`). Run it blocking (`run()`, the CLI) or in a background thread (`start()` / `stop()`).
+Each step of h simulated seconds: ArduSub's main loop (RC input, failsafes) -> servo outputs -> physics (with the
+thruster faults) -> the navigation estimate -> the telemetry due on each link. Between steps the loop reads the
+links and sleeps until the next step is due on the wall clock (`Pacer`). Run it blocking (`run()`, the CLI) or in a
+background thread (`start()` / `stop()`).
+Vehicle faults (`sim_bridge.vehicle_faults`) run on `t`, the vehicle's clock since the bridge started; the autopilot
+runs on `uptime`, its time since boot, which a reboot (`reboot@T`, MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN) restarts
+(`sim_bridge.boot`): from the power loss the autopilot sends nothing, ignores what arrives, drives no thruster and
+its TCP clients are disconnected (as a restarting SITL's); at its start a fresh ArduSub (disarmed, MANUAL, no
+overrides, RC input and failsafes as at boot, no GCS seen, the stored parameters, no SET_MESSAGE_INTERVAL), a fresh
+EKF and battery monitor (mAh counted from 0), the stored mission, each link's sequence restarting under the stored
+sysid; the main loop then sends INFO "ArduPilot Ready".
 An exception while handling one received message is contained: counted in `handler_errors`, reported in one stderr
 line, and the loop goes on (the fuzz test requires the count to stay 0: this is the last net, not the fix).
 """
@@ -20,10 +28,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_vehicle
-from sim_bridge import telemetry
-from sim_bridge.ardusub import ArduSub
+from sim_bridge import boot, telemetry
+from sim_bridge.ardusub import MAV_SEVERITY_INFO, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.config import BridgeConfig
+from sim_bridge.avionics import Avionics
 from sim_bridge.faults import LinkFaults
 from sim_bridge.link import Link, open_links
 from sim_bridge.missions import MissionProtocol
@@ -33,8 +42,10 @@ from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.schedule import Scheduler
 from sim_bridge.signing import VehicleSigning
+from sim_bridge.vehicle_faults import LiveFaults, resolve
 
 MAX_IDLE = 0.05                                   # s: longest sleep between checks for a stop request
+SENSOR_PERIOD = 0.02                              # s: the failsafes' sensors are read at 50 Hz
 
 
 class Bridge:
@@ -57,26 +68,31 @@ class Bridge:
         if not 1 <= self.params.sysid <= 255:
             raise ValueError(f"parameter {self.params.names.sysid}: the vehicle's sysid must be 1 to 255")
         self.vehicle = load_vehicle(config.vehicle_path)
-        self.sub = ArduSub(self.params)
+        self.vehicle_faults = resolve(config.vehicle_faults, config.environment)
+        self.live = LiveFaults(self.vehicle_faults)
         plant = Plant(self.vehicle, config.environment, eta0=np.array([0, 0, config.start_depth, 0, 0, 0.0]),
                       seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
-        self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step)
+        self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step,
+                               self.vehicle_faults)
         self.signing = VehicleSigning(config.signing_key, time.time())
         self.missions = MissionProtocol(lambda: config.origin)
-        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.missions,
-                                 self.signing)
+        self.boot = boot.Boot(config.step)
         self.links: list[Link] = []
         self.schedulers: list[Scheduler] = []
         self.steps = 0
         self.messages_received = 0
+        self.messages_ignored = 0                 # arrived while the autopilot was off or booting
         self.message_types: set[str] = set()      # of the dialect's types received (unknown ids not counted)
         self.handler_errors = 0
         self._step_us = round(config.step * 1e6)
-        self.servo = self.sub.servo_outputs()
-        self.estimate = plant.measured()          # (eta, nu) as the sensors give them now: the autopilot's view
         self.unix_start = time.time()
+        self._start_firmware()
+        self.sub.initialised = True               # the bridge starts with its autopilot booted
+        self.servo = self.sub.servo_outputs()
+        self.measured = plant.measured()          # (eta, nu) as the sensors give them now
+        self.estimate = self._navigate()          # the autopilot's view of them (its EKF's)
         self.pacer: Pacer | None = None
         self._stop = threading.Event()
         self._lock = threading.Lock()
@@ -97,9 +113,7 @@ class Bridge:
                 f"first: {rejected.describe()}); counted, not reported again", file=sys.stderr, flush=True)
             if faults is not None and faults.applies_to(link.channel):
                 link.degrade(LinkFaults.create(faults, self.config.seed, link.channel), lambda: self.t)
-        names = tuple(telemetry.BUILDERS)
-        self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
-                           for link in self.links]
+        self._start_streams()
 
     def close(self) -> None:
         for link in self.links:
@@ -143,8 +157,13 @@ class Bridge:
 
     @property
     def t(self) -> float:
-        """Simulated time since boot, s."""
+        """Simulated time since the bridge started (the vehicle faults' clock), s."""
         return self.steps * self.physics.h
+
+    @property
+    def uptime(self) -> float:
+        """The autopilot's time since boot, s (negative while it is off)."""
+        return self.boot.uptime(self.steps)
 
     def truth(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(t, eta, nu) of the simulated vehicle, without sensor noise (copies; safe from any thread)."""
@@ -153,22 +172,71 @@ class Bridge:
             return self.t, np.array(plant.eta, dtype=float), np.array(plant.nu, dtype=float)
 
     def snapshot(self) -> telemetry.Snapshot:
-        """What the telemetry reports now (measured state, with the environment's sensor noise)."""
+        """What the telemetry reports now (the autopilot's estimate, with the environment's sensor noise)."""
         eta, nu = self.estimate
-        battery = self.physics.battery
+        battery, sub, avionics, uptime = self.physics.battery, self.sub, self.avionics, self.uptime
+        nav = avionics.navigation
         return telemetry.Snapshot(
-            t_us=self.steps * self._step_us, eta=np.asarray(eta), nu=np.asarray(nu), servo=self.servo,
-            rc_in=self.sub.rc.radio_in.copy(),
-            base_mode=self.sub.base_mode(), custom_mode=self.sub.mode, system_status=self.sub.system_status(),
-            throttle=float(self.sub.pilot_axes()[3]) if self.sub.armed else 0.0,
-            voltage=battery.voltage, current=battery.current, consumed_ah=battery.consumed_ah,
-            remaining=battery.remaining, origin=self.config.origin, water_density=self.vehicle.water_density,
-            gravity=self.vehicle.gravity, unix_start=self.unix_start, firmware=self.params.firmware,
-            mission_count=len(self.missions.items), safety_on=self.sub.safety_on)
+            t_us=(self.steps - self.boot.start) * self._step_us, eta=np.asarray(eta), nu=np.asarray(nu),
+            servo=self.servo, rc_in=sub.rc.radio_in.copy(),
+            base_mode=sub.base_mode(), custom_mode=sub.mode, system_status=sub.system_status(),
+            throttle=float(sub.pilot_axes()[3]) if sub.armed else 0.0,
+            voltage=battery.voltage, current=battery.current, consumed_ah=avionics.consumed_ah(),
+            remaining=avionics.remaining(self.params["BATT_CAPACITY"]), origin=self.config.origin, water_density=self.vehicle.water_density,
+            gravity=self.vehicle.gravity, unix_start=self.unix_start + self.boot.start * self.physics.h,
+            firmware=self.params.firmware, mission_count=len(self.missions.items), safety_on=sub.safety_on,
+            initialised=sub.initialised, local_position=not nav.const_pos, ekf_flags=nav.flags(uptime),
+            ekf_variances=nav.variances(uptime), battery_state=sub.failsafes.battery,
+            battery_failsafed=sub.failsafes.battery_failsafed, depth_present=avionics.depth_present,
+            depth_healthy=avionics.bar30 is None, bar30_depth=avionics.bar30)
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:
             scheduler.refresh(t)
+
+    # -- power and boot ----------------------------------------------------------------------------------------
+
+    def _start_firmware(self) -> None:
+        """The firmware starts (at the bridge's start, and after each power loss): a fresh autopilot on the stored
+        parameters."""
+        if self.boot.reboots:
+            self.params.reboot()
+        self.sub = ArduSub(self.params)
+        self.sub.initialised = False
+        self.avionics = Avionics(self.live, self.physics.battery, self.t)
+        stored = self.missions.items
+        self.missions = MissionProtocol(lambda: self.config.origin)
+        self.missions.items = stored
+        self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.missions,
+                                 self.signing)
+        for link in self.links:
+            link.restart(self.sub.sysid)
+        self.schedulers = []
+        self._next_sensors = 0.0
+
+    def _start_streams(self) -> None:
+        """The main loop's streams: every link's scheduler, from the stored rates."""
+        names, uptime = tuple(telemetry.BUILDERS), self.uptime
+        self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
+                           for link in self.links]
+        for scheduler in self.schedulers:
+            scheduler.refresh(uptime)
+
+    def _power_off(self) -> None:
+        """The autopilot loses its power: silent, outputs without pulses, TCP clients dropped."""
+        self.boot.power_off(self.steps)
+        self.sub.texts.clear()
+        self.protocol.reboot_requested = False
+        self.servo = np.zeros_like(self.servo)
+        for link in self.links:
+            link.drop_clients()
+
+    def _navigate(self) -> tuple[np.ndarray, np.ndarray]:
+        """The EKF's estimate from the measured state, and whether it has a position for the autopilot."""
+        uptime, nav = self.uptime, self.avionics.navigation
+        estimate = self.avionics.navigate(self.t, uptime, self.measured)
+        self.sub.position_ok_flags = (nav.position_ok(uptime, True), nav.position_ok(uptime, False))
+        return estimate
 
     # -- loop ------------------------------------------------------------------------------------------------
 
@@ -186,36 +254,78 @@ class Bridge:
             select.select(sockets, [], [], min(self.pacer.wait(self.t), MAX_IDLE))
 
     def _step(self) -> None:
-        self.sub.update(self.t, self.estimate)
-        self.servo = self.sub.servo_outputs()
+        if self.live.reboot_due(self.t):
+            self._power_off()
+        phase = self.boot.phase(self.steps)
+        self.physics.battery.set_sag(self.live.battery_sag(self.t))
+        if phase == boot.RUNNING:
+            uptime = self.uptime
+            fresh = uptime >= self._next_sensors         # read at the fastest failsafe loop's rate (50 Hz)
+            if fresh:
+                self._next_sensors = uptime + SENSOR_PERIOD
+            self.sub.update(uptime, self.estimate, self.avionics.sensors(self.t, uptime) if fresh else None)
+            self.servo = self.sub.servo_outputs()
         with self._lock:
-            self.physics.step(self.servo[:8])
+            self.physics.step(self.servo[:8], self.t)
             self.steps += 1
-        self.estimate = self.physics.plant.measured()
-        t = self.t
+        self.measured = self.physics.plant.measured()
+        previous, phase = phase, self.boot.phase(self.steps)
+        if phase != boot.OFF and previous == boot.OFF:
+            self._start_firmware()
+        if phase != boot.OFF:
+            self.estimate = self._navigate()
+        if phase == boot.RUNNING and previous != boot.RUNNING:
+            self.sub.initialised = True
+            self.sub.texts.append((MAV_SEVERITY_INFO, "ArduPilot Ready"))
+            self._start_streams()
+        self.sub.texts += self.avionics.navigation.texts
+        self.avionics.navigation.texts = []
+        if phase != boot.RUNNING:
+            self._booting()
+            return
+        self._send_due()
+
+    def _send_due(self) -> None:
+        """The main loop's output: texts, the streams due on each link, the mission protocol's requests."""
+        uptime = self.uptime
         while self.sub.texts:
             severity, text = self.sub.texts.pop(0)
             self._broadcast(telemetry.ENCODER.statustext_encode(severity, text.encode()[:50]))
         snap = None
         for link, scheduler in zip(self.links, self.schedulers):
-            for name in scheduler.due(t):
+            for name in scheduler.due(uptime):
                 snap = snap or self.snapshot()
-                link.send(telemetry.BUILDERS[name](snap))
+                msg = telemetry.BUILDERS[name](snap)
+                if msg is not None:
+                    link.send(msg)
             link.deliver()
-        for channel, msg in self.missions.update(t):
+        for channel, msg in self.missions.update(uptime):
             for link in self.links:
                 if link.channel == channel:
                     link.send(msg)
 
+    def _booting(self) -> None:
+        """Off or initialising: only init's delay callback speaks (HEARTBEAT and SYS_STATUS once a second)."""
+        self.sub.texts.clear()
+        if self.boot.delay_callback_due(self.steps):
+            snap = self.snapshot()
+            for name in ("HEARTBEAT", "SYS_STATUS"):
+                self._broadcast(telemetry.BUILDERS[name](snap))
+        for link in self.links:
+            link.deliver()
+
     def _receive(self) -> None:
-        t = self.t
-        for link, scheduler in zip(self.links, self.schedulers):
+        uptime, running = self.uptime, self.boot.phase(self.steps) == boot.RUNNING
+        for link, scheduler in zip(self.links, self.schedulers or [None] * len(self.links)):
             for msg in link.receive():
                 self.messages_received += 1
                 if msg.get_msgId() in mavlink.mavlink_map:
                     self.message_types.add(msg.get_type())
+                if not running:
+                    self.messages_ignored += 1
+                    continue
                 try:
-                    replies = self.protocol.handle(msg, link.channel, scheduler, t)
+                    replies = self.protocol.handle(msg, link.channel, scheduler, uptime)
                     for reply, to_all in replies:
                         if to_all:
                             self._broadcast(reply)
@@ -226,6 +336,9 @@ class Bridge:
                     print(f"sim-bridge: error handling {msg.get_type()} from {msg.get_srcSystem()}/"
                           f"{msg.get_srcComponent()} on link {link.channel}: {type(exc).__name__}: {exc}",
                           file=sys.stderr, flush=True)
+                if self.protocol.reboot_requested:   # the ACK is out: now the power goes
+                    self._power_off()
+                    running = False
 
     def _broadcast(self, msg) -> None:
         for link in self.links:

@@ -1,8 +1,13 @@
 """Telemetry messages as ArduSub fills them, built from a snapshot of the simulated vehicle.
 
-Every time field is simulated time since boot. Position, velocity and attitude are the plant's measured (noisy)
-state; depth comes from the Bar30 (SCALED_PRESSURE2), LOCAL/GLOBAL position from an ideal navigation solution
-(a DVL-aided EKF that is valid from boot).
+Every time field is simulated time since boot. Position, velocity and attitude are the autopilot's estimate
+(`sim_bridge.navigation`: the plant's measured, noisy state while every sensor works); depth comes from the Bar30
+(SCALED_PRESSURE2: its last reading, frozen, once it has failed; not sent when it was not found at boot); LOCAL
+position only while the EKF has one (a builder returning None sends nothing), GLOBAL position always (stale if need
+be); EKF_STATUS_REPORT the EKF's flags and variances. SYS_STATUS (`GCS_Sub::update_sensor_status_flags`): the depth
+sensor's ABSOLUTE_PRESSURE bit present when found at boot and healthy while it works, the battery unhealthy once its
+failsafe has triggered, gyro and accelerometers neither enabled nor healthy until initialised; BATTERY_STATUS's
+charge state LOW / CRITICAL with the battery failsafe (`AP_BattMonitor::get_mavlink_charge_state`).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR
            | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
            | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY)
 HEALTH = SENSORS | mavlink.MAV_SYS_STATUS_GEOFENCE   # no fence, and so no breach
+INERTIAL = mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
 CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
                 | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
                 | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
@@ -56,6 +62,15 @@ class Snapshot:
     firmware: str
     mission_count: int = 0               # items of the stored mission, home's slot included
     safety_on: bool = False              # the software safety switch: motor outputs not enabled
+    initialised: bool = True             # `ap.initialised`
+    local_position: bool = True          # the EKF has a horizontal position (LOCAL_POSITION_NED is sent)
+    ekf_flags: int = 831                 # EKF_STATUS_REPORT flags
+    ekf_variances: tuple[float, float, float, float] = (0.05, 0.05, 0.05, 0.05)  # velocity, pos h, pos v, compass
+    battery_state: int = 0               # 0 none, 1 low, 2 critical (the battery failsafe)
+    battery_failsafed: bool = False
+    depth_present: bool = True           # the depth sensor found at boot
+    depth_healthy: bool = True
+    bar30_depth: float | None = None     # m, what the depth sensor reads (None: the estimate's depth)
 
     @property
     def ms(self) -> int:
@@ -90,6 +105,8 @@ def attitude_quaternion(s: Snapshot):
 
 
 def local_position_ned(s: Snapshot):
+    if not s.local_position:
+        return None
     return ENCODER.local_position_ned_encode(s.ms, *map(float, s.eta[:3]), *map(float, s.ned_velocity()))
 
 
@@ -106,10 +123,13 @@ def global_position_int(s: Snapshot):
 
 def gauge_pressure(s: Snapshot) -> float:
     """Water pressure above the surface's at the Bar30, Pa."""
-    return s.water_density * s.gravity * float(s.eta[2])
+    depth = s.eta[2] if s.bar30_depth is None else s.bar30_depth
+    return s.water_density * s.gravity * float(depth)
 
 
 def scaled_pressure2(s: Snapshot):
+    if not s.depth_present:              # `send_scaled_pressure_instance`: no second barometer, no message
+        return None
     diff = gauge_pressure(s)
     return ENCODER.scaled_pressure2_encode(s.ms, (SURFACE_PRESSURE + diff) / 100.0, diff / 100.0,
                                            round(WATER_TEMPERATURE * 100))
@@ -133,16 +153,35 @@ def rc_channels(s: Snapshot):
 
 
 def sys_status(s: Snapshot):
-    enabled = SENSORS & ~mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS if s.safety_on else SENSORS
-    return ENCODER.sys_status_encode(SENSORS, enabled, HEALTH, 0, round(s.voltage * 1000), round(s.current * 100),
+    present = SENSORS if s.depth_present else SENSORS & ~mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    enabled = present & ~mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS if s.safety_on else present
+    health = HEALTH & present
+    if not s.depth_healthy:
+        health &= ~mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    if s.battery_failsafed:
+        health &= ~mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+    if not s.initialised:
+        enabled &= ~INERTIAL
+        health &= ~INERTIAL
+    return ENCODER.sys_status_encode(present, enabled, health, 0, round(s.voltage * 1000), round(s.current * 100),
                                      round(s.remaining * 100), 0, 0, 0, 0, 0, 0)
+
+
+CHARGE_STATE = {0: mavlink.MAV_BATTERY_CHARGE_STATE_OK, 1: mavlink.MAV_BATTERY_CHARGE_STATE_LOW,
+                2: mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL}
 
 
 def battery_status(s: Snapshot):
     cells = [round(s.voltage * 1000)] + [65535] * 9
     return ENCODER.battery_status_encode(0, mavlink.MAV_BATTERY_FUNCTION_UNKNOWN, mavlink.MAV_BATTERY_TYPE_LION,
                                          32767, cells, round(s.current * 100), round(s.consumed_ah * 1000), -1,
-                                         round(s.remaining * 100), 0, mavlink.MAV_BATTERY_CHARGE_STATE_OK)
+                                         round(s.remaining * 100), 0, CHARGE_STATE[s.battery_state])
+
+
+def ekf_status_report(s: Snapshot):
+    """NavEKF3_core::send_status_report: the flags and variances (terrain and airspeed 0: no rangefinder, no
+    airspeed)."""
+    return ENCODER.ekf_status_report_encode(s.ekf_flags, *map(float, s.ekf_variances), 0.0, 0.0)
 
 
 def system_time(s: Snapshot):
@@ -180,6 +219,7 @@ BUILDERS = {
     "RC_CHANNELS": rc_channels,
     "SYS_STATUS": sys_status,
     "BATTERY_STATUS": battery_status,
+    "EKF_STATUS_REPORT": ekf_status_report,
     "SYSTEM_TIME": system_time,
     "AUTOPILOT_VERSION": autopilot_version,
     "HOME_POSITION": home_position,

@@ -58,7 +58,7 @@ def fuzzed_bridge(workdir: Path, speedup: float = SPEEDUP) -> tuple[BridgeProces
 
 class Sender:
     """Sockets to the fuzzed links; replies are read and dropped. A TCP link the bridge closed (it drops a client
-    that lets its replies pile up) is reconnected and counted."""
+    that lets its replies pile up, and every client when the traffic reboots it) is reconnected and counted."""
 
     def __init__(self, links: list[tuple[str, int]]):
         self.links = links
@@ -91,8 +91,8 @@ class Sender:
         """Until the kernel has handed every byte written to a TCP link over to the bridge's side (a slow bridge's
         full receive window keeps them here, and a TIMESYNC answered meanwhile would not cover them)."""
         deadline = time.monotonic() + WAIT
-        for (kind, _), sock in zip(self.links, self.socks):
-            while kind == "tcp" and _unsent(sock) and time.monotonic() < deadline:
+        for index, (kind, _) in enumerate(self.links):     # drain() may reconnect: read the socket afresh
+            while kind == "tcp" and _unsent(self.socks[index]) and time.monotonic() < deadline:
                 self.drain()
                 time.sleep(0.002)
 

@@ -9,6 +9,7 @@ import sys
 from rov_mav.commands.arguments import endpoint, number, seed, speedup
 from rov_mav.commands.common import add_signing_options, signing_key
 from rov_mav.model.environment import load_environment
+from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, load_vehicle_faults
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
 from sim_bridge.faults import FaultError, FaultSpec, load_faults
 from sim_bridge.link import LinkError
@@ -18,15 +19,25 @@ DESCRIPTION = """\
 A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a ground station (QGroundControl,
 MAVProxy), MAVSDK or `rov-mav run` can fly it as they would a real one or ArduSub SITL.
 
-What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD, the assisted ones
-holding attitude, depth and position with simple loops of its own; other modes refused), arming and
+What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD/GUIDED/SURFACE,
+the assisted ones holding attitude, depth and position with simple loops of its own; other modes refused), arming and
 DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
 SET_MESSAGE_INTERVAL / REQUEST_MESSAGE / REQUEST_DATA_STREAM, RC_CHANNELS_OVERRIDE exactly as ArduSub treats it
 (only from the GCS sysid, expiry after RC_OVERRIDE_TIME), SERVOn_FUNCTION routing (33..40 motors through the
 vectored_6dof mixer when armed; 51..66 RCIN passthrough, NOT gated by arming and holding its last value when the
-overrides stop), the GCS-heartbeat and pilot-input failsafes, and telemetry (ATTITUDE, LOCAL_POSITION_NED,
-GLOBAL_POSITION_INT, SCALED_PRESSURE2, VFR_HUD, SERVO_OUTPUT_RAW, RC_CHANNELS, SYS_STATUS, BATTERY_STATUS, ...).
-The vehicle is the project's 6-DOF model with T200 thrusters (PWM -> thrust at the battery voltage, 20 ms lag).
+overrides stop), the GCS-heartbeat, pilot-input, leak (FS_LEAK_ENABLE), battery (BATT_LOW_VOLT/CRT_VOLT/_MAH,
+BATT_FS_LOW_ACT/CRT_ACT), EKF (FS_EKF_ACTION/THRESH) and depth-sensor failsafes, SURFACE mode (rises to the
+surface, then ALT_HOLD), MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, and telemetry (ATTITUDE, LOCAL_POSITION_NED,
+GLOBAL_POSITION_INT, SCALED_PRESSURE2, VFR_HUD, SERVO_OUTPUT_RAW, RC_CHANNELS, SYS_STATUS, BATTERY_STATUS,
+EKF_STATUS_REPORT, ...). The vehicle is the project's 6-DOF model with T200 thrusters (PWM -> thrust at the
+battery voltage, 20 ms lag).
+
+Vehicle faults (--vehicle-faults, or an --environment file's vehicle_faults:) strike at vehicle times since the
+bridge started: a thruster dead, stuck, weak or reversed; a reboot (a brown-out: TCP clients dropped, 2 s of
+silence, time_boot_ms from 0, HEARTBEAT BOOT, then "ArduPilot Ready" 3 s after the power loss: disarmed, MANUAL,
+stored parameters); a leak; a sagging battery; the horizontal position source lost (the EKF's position flags drop
+after 7 s, constant-position mode and no LOCAL_POSITION_NED after 15 s); a failed depth sensor ("Depth sensor
+error!", depth modes to MANUAL). Each meets ArduSub's own reaction, with its parameters and defaults.
 
 Every timer (failsafes, override expiry, telemetry rates, time_boot_ms) runs on the simulated clock, which runs
 --speedup times faster than the wall clock: at --speedup 10, send heartbeats and overrides 10x as often.
@@ -41,6 +52,8 @@ examples:
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
   rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --link-faults loss=0.2,delay=50ms,jitter=10ms --seed 3
+  rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --vehicle-faults thruster=3:dead@60s,leak@90s \
+      --param FS_LEAK_ENABLE=2
 
 Stop with Ctrl-C or SIGTERM; the achieved speedup, the loop's timing and the count of messages received (and of
 any that raised an error while being handled: each is also reported on stderr) are printed on exit.
@@ -69,6 +82,13 @@ def _faults(text: str) -> FaultSpec:
     try:
         return load_faults(text)
     except FaultError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _vehicle_faults(text: str) -> VehicleFaults:
+    try:
+        return load_vehicle_faults(text)
+    except VehicleFaultError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
@@ -120,6 +140,14 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "drop=MESSAGE[@START] (that type never arrives; repeatable), link=N (only the N-th "
                         "endpoint, --out ones first; default all), times with ms or s, e.g. "
                         "loss=0.2,delay=50ms,cut=30s@20s; or a YAML file with the same keys")
+    p.add_argument("--vehicle-faults", type=_vehicle_faults, metavar="SPEC|FILE",
+                   help="break the vehicle on purpose, at vehicle times since the start (they run on through "
+                        "reboots): comma-separated thruster=N:dead@T, thruster=N:stuck=PWM@T (1100..1900 us), "
+                        "thruster=N:weak=K@T (0 < K < 1), thruster=N:reversed@T (N = motor 1..8), reboot@T "
+                        "(repeatable), leak@T, battery=RATE[@T] (extra sag in V/s, e.g. 0.05V/s), "
+                        "navigation-lost@T[+D] (for D, or for good), depth-sensor@T, times with their unit, e.g. "
+                        "thruster=3:dead@60s,reboot@90s; or a YAML file holding vehicle_faults: (that text or a "
+                        "list of items). Replaces an --environment file's vehicle_faults")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
     add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
@@ -137,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
                           step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args),
-                          faults=args.link_faults)
+                          faults=args.link_faults, vehicle_faults=args.vehicle_faults)
     from sim_bridge.server import (
         Bridge,  # the physics stack loads only when a bridge runs
     )
@@ -153,6 +181,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
         return 1
     faults = f", link faults {args.link_faults.describe()}" if args.link_faults is not None else ""
+    if bridge.vehicle_faults:
+        faults += f", vehicle faults {bridge.vehicle_faults.describe()}"
     print(f"sim-bridge: ArduSub {args.firmware} ({bridge.vehicle.name}) on {', '.join(endpoints)}, "
           f"speedup {args.speedup:g}{', MAVLink 2 signing on' if bridge.signing.enabled else ''}{faults}", flush=True)
     previous = {sig: signal.signal(sig, lambda *_: bridge.request_stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -167,6 +197,9 @@ def run(args: argparse.Namespace) -> int:
           f"p50 {s['late_p50_ms']:.3f} p99 {s['late_p99_ms']:.3f} max {s['late_max_ms']:.3f}", flush=True)
     print(f"sim-bridge: {bridge.messages_received} messages received ({len(bridge.message_types)} types), "
           f"{bridge.handler_errors} handler errors", flush=True)
+    if bridge.boot.reboots:
+        print(f"sim-bridge: {bridge.boot.reboots} reboot(s); {bridge.messages_ignored} messages arrived while the "
+              "autopilot was off or booting and were ignored", flush=True)
     if rejected := {link.channel: link.rejections.count for link in bridge.links if link.rejections.count}:
         print("sim-bridge: frames dropped for their signature: "
               + ", ".join(f"link {channel}: {n}" for channel, n in rejected.items()), flush=True)
