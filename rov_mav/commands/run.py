@@ -185,6 +185,11 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "CAP_SYS_NICE and CAP_IPC_LOCK) and flies on at normal priority")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
+    p.add_argument("--vehicle-faults", type=_vehicle_faults, metavar="SPEC|FILE",
+                   help="built-in vehicle only: make it fail on purpose, in vehicle s since it started (as "
+                        "`rov-mav sim-bridge --vehicle-faults`; replaces the mission's environment: vehicle_faults): "
+                        "thruster=N:dead|stuck=PWM|weak=K|reversed@T, reboot@T, leak@T, battery=RATE[@T] (V/s), "
+                        "navigation-lost@T[+D], depth-sensor@T, comma-separated, e.g. thruster=3:dead@60s")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
                            "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
                            "the key is refused. The built-in vehicle gets the same key.")
@@ -198,7 +203,16 @@ def _free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-def _launch_vehicle(mission, speedup: float, key: bytes | None):
+def _vehicle_faults(text: str):
+    from rov_mav.model.vehicle_faults import VehicleFaultError, load_vehicle_faults
+
+    try:
+        return load_vehicle_faults(text)
+    except VehicleFaultError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=None):
     """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with
     the loop), its home at the mission's origin when it has one, loading while this process gets ready; returns
     (vehicle, connection string for it). Its clock starts with `_start_vehicle`."""
@@ -209,7 +223,7 @@ def _launch_vehicle(mission, speedup: float, key: bytes | None):
     origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
     vehicle = VehicleProcess(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
                                           environment=mission.environment, start_depth=float(mission.start_pose[2]),
-                                          origin=origin, signing_key=key))
+                                          origin=origin, signing_key=key, vehicle_faults=vehicle_faults))
     vehicle.launch()
     return vehicle, f"udpout:127.0.0.1:{port}"
 
@@ -280,6 +294,10 @@ def main(args: argparse.Namespace) -> int:
     settings = None if guided else controller_settings(args)
     kind = GUIDED_KIND if guided else settings.kind
     model = load_vehicle(args.vehicle)
+    if args.target is not None and args.vehicle_faults is not None:
+        print("rov-mav run: error: --vehicle-faults applies to the built-in vehicle only (no --target)",
+              file=sys.stderr)
+        return 2
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
@@ -311,7 +329,7 @@ def main(args: argparse.Namespace) -> int:
             # The built-in vehicle's clock runs from its start, under the mission's disturbance: what is slow to
             # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick), the
             # vehicle's own process loading meanwhile.
-            bridge, target = _launch_vehicle(mission, args.speedup, key)
+            bridge, target = _launch_vehicle(mission, args.speedup, key, args.vehicle_faults)
             prepare_compute()
             _start_vehicle(bridge, target, args.speedup)
         session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,

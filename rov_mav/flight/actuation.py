@@ -43,7 +43,8 @@ EDGE_MARGIN = 5.0         # us beyond a dead band's edge: the smallest thrust pr
 # 100 N of force. A vehicle that keeps its attitude keeps its thrusters pointing where the allocation assumes; with
 # all axes weighted alike, a saturated surge demand on SITL pitched the vehicle 46 deg within a second.
 ALLOCATION_WEIGHTS = np.array([1.0, 1.0, 1.0, 100.0, 100.0, 1.0])
-PROBE_THRUST = 1.0        # N: amplitude of the null-space probe (no net wrench while every thruster works)
+PROBE_THRUST = 1.0        # N: amplitude of the null-space probe (no net wrench while every thruster works), along the
+                          # patterns of the horizontal thrusters only (a slight mismatch cannot heave, roll or pitch)
 PROBE_PERIOD = 2.0        # vehicle s
 
 
@@ -94,7 +95,9 @@ class Actuation:
                                         max_thrust=self.max_thrust)
         g = self.gains
         self._active = np.flatnonzero(g != 0.0)
-        self._null = sparse_null_vectors(healthy.matrix[:, self._active])
+        heave = np.abs(healthy.matrix[2, self._active]) > 1e-9   # vertical thrusters: the probe leaves them alone
+        self._probe = [v for v in sparse_null_vectors(healthy.matrix[:, self._active])
+                       if not np.any(heave & (np.abs(v) > 1e-9))]
         kept = np.where(g != 0.0, g, 1.0)           # a thruster left out keeps its range, its column zeroed
         self.allocator = Allocator(healthy.matrix * (g != 0.0), np.minimum(kept * healthy.f_min, kept * healthy.f_max),
                                    np.maximum(kept * healthy.f_min, kept * healthy.f_max), ALLOCATION_WEIGHTS)
@@ -120,7 +123,7 @@ class Actuation:
         given, info = self.allocator.thrusts(tau)
         if self.probe and t is not None and not info.saturated:
             phase = 2.0 * np.pi * t / PROBE_PERIOD
-            for j, vector in enumerate(self._null):
+            for j, vector in enumerate(self._probe):
                 given[self._active] += PROBE_THRUST * np.sin(phase + j * np.pi / 2) * vector
         if self.pretension is not None and not info.saturated:
             given[self._active] = self.pretension.apply(given[self._active])

@@ -16,7 +16,8 @@ from rov_mav.flight.stations import Sighting, Verdict, judge
 from rov_mav.flight.stream_rate import measure, too_slow
 from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
 
-SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0}   # vehicle Hz
+SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0,   # vehicle Hz
+              "EKF_STATUS_REPORT": 5.0}      # a lost position stops the run at once, not at the link timeout
 RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
 OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
 OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then

@@ -19,10 +19,11 @@ from rov_mav.flight.link import CHANNELS, mavlink, mode_name
 from rov_mav.flight.outputs import Guided, Passthrough
 from rov_mav.flight.prediction import MAX_HORIZON, StatePredictor
 from rov_mav.flight.run_io import RunIO
-from rov_mav.flight.run_options import Abort, HandOver, LinkLost
+from rov_mav.flight.run_options import Abort, HandOver, LinkLost, VehicleFailsafe
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.thruster_watch import ThrusterWatch
 from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, failsafe_text, position_lost
 from rov_mav.flight.vehicle_state import State
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
@@ -72,6 +73,8 @@ class FlightLoop:
         self._stalled: deque[tuple[float, float]] = deque()   # (wall s it ended, wall s it lasted), recent stalls
         self._resumed: float | None = None      # vehicle s the loop resumed after its last stall
         self._held_tau = np.zeros(6)             # the wrench of the last command sent
+        self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
+        self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1)
         io.mission_time = self.mission_time
@@ -156,15 +159,20 @@ class FlightLoop:
         return now
 
     def _watch(self, msg, kind: str) -> None:
-        """While the vehicle is ours: is anyone else driving it? (HandOver; Abort if it was disarmed.)"""
+        """While the vehicle is ours: has it failed (its failsafes, a reboot: `vehicle_events`), and is anyone else
+        driving it? (VehicleFailsafe, HandOver; Abort if it rebooted or was disarmed.)"""
         s = self.io.session
         since = self.io.flying_since
         now = s.clock.now()
+        self._watch_vehicle(msg, kind, now)
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
                 raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)")
             if msg.custom_mode != self.output.flight_mode:
                 mode = mode_name(msg.custom_mode)
+                if mode == "SURFACE":
+                    raise VehicleFailsafe("the vehicle entered SURFACE (a failsafe's action, or a pilot): left to "
+                                          "it", now, EXIT_FAILSAFE)
                 raise HandOver(f"the vehicle's mode was changed to {mode} by someone else", now)
         elif kind == "RC_CHANNELS" and s.echo.report([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
             raise HandOver("the vehicle's RC input is not what this run sends (RC_CHANNELS "
@@ -180,6 +188,23 @@ class FlightLoop:
             raise HandOver(f"a pilot station on our GCS sysid started sending MANUAL_CONTROL, which ArduSub "
                            f"writes over our thrusters: {joysticks[0].describe()}", joysticks[0].last_drive,
                            joysticks[0])
+
+    def _watch_vehicle(self, msg, kind: str, now: float) -> None:
+        """The vehicle's own trouble: a reboot (its clock went back, or it reports booting), a failsafe it announces,
+        its estimator without a position."""
+        reboots = self.io.session.clock.reboots
+        if len(reboots) > self._reboots or (kind == "HEARTBEAT" and msg.system_status == mavlink.MAV_STATE_BOOT):
+            before, after = reboots[-1] if len(reboots) > self._reboots else (now, 0.0)
+            raise Abort(f"the vehicle rebooted (its clock went back from {before:.1f} s to {after:.1f} s): it is "
+                        "disarmed, and its outputs are as stored in its parameters", EXIT_REBOOT)
+        if kind == "STATUSTEXT" and (fault := failsafe_text(msg.text)) is not None and fault.stop:
+            raise VehicleFailsafe(f"the vehicle's failsafe: {fault.name} (\"{msg.text}\")", now, EXIT_FAILSAFE)
+        if kind == "EKF_STATUS_REPORT":
+            if not position_lost(msg.flags):
+                self._position_reported = True
+            elif self._position_reported:
+                raise VehicleFailsafe(f"the vehicle's estimator has lost its horizontal position (EKF_STATUS_REPORT "
+                                      f"flags 0x{msg.flags:04x}): no position to fly on", now, EXIT_FAILSAFE)
 
     def _tick(self, state: State) -> bool:
         """One control tick; True when the mission is complete."""

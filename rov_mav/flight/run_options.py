@@ -64,6 +64,15 @@ class HandOver(Abort):
         self.station = station
 
 
+class VehicleFailsafe(HandOver):
+    """The vehicle's own failsafe acts (a leak, a critical battery, its estimator, its depth sensor, SURFACE): the
+    run stops at once and leaves the vehicle to it, as to a pilot (not disarmed, its mode kept, motors back)."""
+
+    def __init__(self, reason: str, t_detected: float, code: int):
+        super().__init__(reason, t_detected)
+        self.code = code
+
+
 @dataclass
 class RunResult:
     code: int

@@ -16,7 +16,7 @@ import time
 from rov_mav.flight.link import CHANNELS, NEUTRAL, mavlink, mode_name
 from rov_mav.flight.outputs import NEUTRAL_HOLD, Passthrough
 from rov_mav.flight.run_io import SAFE_STOP_CONFIRM, RunIO
-from rov_mav.flight.run_options import HandOver
+from rov_mav.flight.run_options import HandOver, VehicleFailsafe
 
 HANDOVER_CONFIRM = 0.2           # vehicle s to see neutral when handing over: a pilot's joystick may be writing over it
 LOST_LINK_RETRY = 5.0            # wall s of neutral retries before a silent vehicle is reported as lost
@@ -131,6 +131,11 @@ class SafeStop:
         s, changes = self.io.session, self.io.changes
         mode = mode_name(s.heartbeat.custom_mode)
         state = "armed" if s.armed else "NOT armed"
+        if isinstance(self.handover, VehicleFailsafe):
+            gcs = changes.gcs[1] if changes.gcs is not None else s.sysid
+            return (f"left to the vehicle's failsafe: {state} in {mode}, thrusters back on ArduSub's motors, "
+                    f"overrides released, nothing undone of what it did; its GCS failsafe (FS_GCS_ENABLE) now needs "
+                    f"a station with sysid {gcs} sending heartbeats")
         took = s.clock.now() - self.handover.t_detected
         gcs = changes.gcs[1] if changes.gcs is not None else s.sysid
         station = self.handover.station

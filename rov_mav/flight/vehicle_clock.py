@@ -22,6 +22,7 @@ class VehicleClock:
         self.last_vehicle: float | None = None
         self.last_wall = 0.0
         self._anchor: tuple[float, float] | None = None
+        self.reboots: list[tuple[float, float]] = []   # (the last time before, the first after): the clock went back
 
     def observe(self, vehicle_t: float, wall: float | None = None) -> None:
         """A timestamp `vehicle_t` (s) received at `wall` (default now). Earlier timestamps are ignored."""
@@ -30,6 +31,7 @@ class VehicleClock:
             if self.last_vehicle - vehicle_t < 1.0:
                 return                      # reordered or late: keep the newest
             self._anchor = None             # the vehicle rebooted
+            self.reboots.append((self.last_vehicle, vehicle_t))
         self.last_vehicle, self.last_wall = vehicle_t, wall
         if self._anchor is None:
             self._anchor = (vehicle_t, wall)

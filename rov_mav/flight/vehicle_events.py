@@ -1,0 +1,54 @@
+"""What the vehicle says about itself that ends a run: its own failsafes (ArduSub's texts and modes) and a reboot.
+
+ArduSub 4.7 announces each failsafe in a STATUSTEXT (`ArduSub/failsafe.cpp`): "Leak Detected" (CRITICAL,
+`Sub::failsafe_leak_check`, every 20 s while wet, whatever FS_LEAK_ENABLE says), "EKF bad" (WARNING,
+`Sub::failsafe_ekf_check`), "Depth sensor error!" (CRITICAL, `Sub::failsafe_sensors_check`); the battery monitor says
+"Battery N is low|critical V used mAh" (WARNING, `AP_BattMonitor::check_failsafes`), and the vehicle's action follows
+(SURFACE or a disarm, `Sub::handle_battery_failsafe`). EKF_STATUS_REPORT without a horizontal position
+(`NavEKF3_core::send_status_report`) means the estimator has lost its position source. A reboot shows as the
+vehicle's clock (time_boot_ms) going back (`AP_HAL::millis` restarts at boot) and as HEARTBEAT's MAV_STATE_BOOT.
+Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+EXIT_REBOOT = 7            # exit status: the vehicle rebooted during the run
+EXIT_FAILSAFE = 8          # exit status: the vehicle's own failsafe (leak, battery, estimator, depth sensor)
+POSITION_FLAGS = mavlink.EKF_POS_HORIZ_REL | mavlink.EKF_POS_HORIZ_ABS
+
+
+@dataclass(frozen=True)
+class VehicleFault:
+    """A failsafe the vehicle announced: `name` (leak, battery, estimator, depth sensor), `stop` (the run must end:
+    only a low battery that merely warns does not)."""
+
+    name: str
+    stop: bool
+
+
+_TEXTS = (
+    (re.compile(r"^Leak Detected"), VehicleFault("leak", True)),
+    (re.compile(r"^Battery \d+ is critical"), VehicleFault("battery critical", True)),
+    (re.compile(r"^Battery \d+ is low"), VehicleFault("battery low", False)),
+    (re.compile(r"^EKF bad"), VehicleFault("estimator (EKF) failsafe", True)),
+    (re.compile(r"^Depth sensor error"), VehicleFault("depth sensor lost", True)),
+)
+
+
+def failsafe_text(text: str) -> VehicleFault | None:
+    """The failsafe a STATUSTEXT announces, or None."""
+    for pattern, fault in _TEXTS:
+        if pattern.match(text.strip()):
+            return fault
+    return None
+
+
+def position_lost(flags: int) -> bool:
+    """EKF_STATUS_REPORT.flags with neither a relative nor an absolute horizontal position (or in constant-position
+    mode): the estimator has no position to give."""
+    return not flags & POSITION_FLAGS or bool(flags & mavlink.EKF_CONST_POS_MODE)
