@@ -126,11 +126,13 @@ class FlightLoop:
         return age <= stale_after and self.io.session.clock.now() - self._prev_tick >= self.command_period
 
     def mission_time(self, t: float) -> float:
-        """Vehicle s since the mission proper started (negative during the lead-in)."""
+        """Vehicle s since the mission proper started (negative during the lead-in); across a reboot of the vehicle
+        (its clock restarted) as if its clock had run on."""
         if self.t_start is None:
             return 0.0
         lead = self.lead_in.duration if self.lead_in is not None else 0.0
-        return t - self.t_start - lead
+        lost = sum(before - after for before, after in self.io.session.clock.reboots[self._reboots:])
+        return t + lost - self.t_start - lead
 
     def _notice_stall(self, last: float) -> float:
         """A turn of the loop much later than the last one: this process stalled (a busy computer, SIGSTOP), the

@@ -33,6 +33,7 @@ from rov_mav.model import kernel
 HEALTHY = 0.6             # effectiveness below this is a fault
 CERTAIN = 2.0             # ... when its shortfall from healthy (1) is this many standard deviations of the estimate
 CONFIRM = 0.8             # vehicle s the verdict must hold before it is given
+CONFIRM_REVERSED = 0.3    # ... for a thruster pushing the wrong way (the loop through it diverges within a second)
 WARM_UP = 10.0            # vehicle s of samples before any verdict (the disturbance and the noise are learnt first)
 SETTLE = 4.0              # vehicle s after a fault is answered before the next verdict (the transient settles)
 SPAN = 0.25               # vehicle s: each residual spans at least this (the velocity noise over it, not over a sample)
@@ -185,7 +186,8 @@ class ThrusterHealth:
             low[:] = False       # several at once: a push the water gives (waves, a turn in a current), not a thruster
         self._below_since = np.where(low, np.where(np.isnan(self._below_since), t, self._below_since), np.nan)
         out = []
-        for i in np.flatnonzero(low & (t - self._below_since >= CONFIRM)):
+        confirm = np.where(g < REVERSED, CONFIRM_REVERSED, CONFIRM)
+        for i in np.flatnonzero(low & (t - self._below_since >= confirm)):
             out.append(self._verdict(i, float(g[i]), float(self._below_since[i]), t))
         return out
 
@@ -209,8 +211,9 @@ class ThrusterHealth:
 
     def answered(self, verdict: Verdict) -> None:
         """The allocation now uses `verdict.gain` for the thruster: what it is told is scaled by it from now on.
-        Every thruster's estimate starts again from healthy (the others' moved to explain the fault's transient) and
-        no verdict comes for SETTLE s (a dead or stuck one is no longer told anything)."""
+        Every thruster's estimate starts again from healthy (the others' moved to explain the fault's transient), the
+        disturbance is open to learning again (a stuck thruster's push is the water's now) and no verdict comes for
+        SETTLE s (a dead or stuck one is no longer told anything)."""
         i, n = verdict.thruster - 1, self.n
         self.known[i] = verdict.gain
         self.excluded[i] = verdict.gain == 0.0
@@ -218,6 +221,7 @@ class ThrusterHealth:
         self.P[:n, :] = 0.0
         self.P[:, :n] = 0.0
         self.P[:n, :n] = np.eye(n) * SPREAD_A ** 2
+        self.P[n:, n:] += np.eye(6) * PRIOR_D ** 2
         self._below_since[:] = np.nan
         if self._previous is not None:
             self._quiet_until = self._previous[0] + SETTLE
