@@ -60,14 +60,15 @@ class RunnerProcess:
             self._eof = True
             self._changed.notify_all()
 
-    def wait_for(self, text: str, timeout: float = RUN_WAIT) -> None:
-        """Until a line containing `text` was printed (AssertionError with the output on timeout or exit)."""
+    def wait_for(self, text: str, timeout: float = RUN_WAIT) -> str:
+        """The first line containing `text`, once printed (AssertionError with the output on timeout or exit)."""
         deadline = time.monotonic() + timeout
         with self._changed:
-            while not any(text in line for line in self.lines):
+            while not (found := [line for line in self.lines if text in line]):
                 if self._eof or time.monotonic() > deadline:
                     raise AssertionError(f"runner never printed {text!r}:\n" + "\n".join(self.lines))
                 self._changed.wait(0.2)
+            return found[0]
 
     def signal(self, signum: int) -> None:
         self.proc.send_signal(signum)

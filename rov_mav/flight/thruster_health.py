@@ -6,19 +6,18 @@ span's start, x_{k-1}, over the interval D = t_k - t_{k-1} under the wrench the 
 command from the instant it acts, through the thrusters' first-order lag, `kernel.predict`, no disturbance); what the
 measured velocity differs by is a wrench, the interval's mean:
     r_k = M (nu_k - nu_model) / D
-(over a span of several samples the velocity noise counts once, not once a sample).
-If thruster i gives (1 + a_i) times the thrust f_i it is told (a_i = 0 healthy, -1 dead, -0.7 at a third of its
-thrust, -2 reversed) and the water pushes with d,
-    r_k = sum_i a_i B_i fbar_i + d + noise,       fbar_i the mean thrust told to thruster i over the interval,
-B_i the allocation matrix's column i. A Kalman filter estimates theta = (a_1..a_8, d): each a_i mean-reverting to 0
-(spread SPREAD_A, memory MEMORY_A: it may step when a thruster fails, and a combination the motion does not show, such
-as all four horizontal thrusters' pretension, stays near healthy), d a random walk (it drifts with waves, current
-and heading), the noise of r learnt from the filter's own innovations. A constant shortfall of thrust and a change of the water's push look alike; what tells them apart is
-the thruster's commands changing, which a fault makes them do (the law answers the error it causes).
-
-A thruster is named once its effectiveness g_i = 1 + a_i has stayed below HEALTHY, and CERTAIN standard deviations
-short of 1, for CONFIRM vehicle s, alone (thrusters fail one at a time; several low at once is the water): `Verdict` says dead (or stuck: a steady push the commands do not move), weak (its
-share) or reversed. Pure: no I/O.
+(over a span of several samples the velocity noise counts once, not once a sample). If thruster i gives (1 + a_i)
+times the thrust f_i it is told (a_i = 0 healthy, -1 dead, -0.7 at a third of its thrust, -2 reversed) and the water
+pushes with d,
+    r_k = a_i B_i fbar_i + d + noise,       fbar_i the mean thrust told to thruster i over the interval,
+B_i the allocation matrix's column i. Thrusters fail one at a time, so this is a bank of hypotheses, each a Kalman
+filter: "all healthy" (d alone, a random walk: it drifts with waves, current and heading) and, for each thruster,
+"thruster i is off by a_i" (d and a_i). Each filter scores how well it predicted every residual (the log-likelihood of
+its innovations, forgetting over MEMORY s): a filter with a thruster's a_i free fits at least as well, but pays for
+its wider prediction, so it wins only when the motion needs it. A thruster is named when its hypothesis beats "all
+healthy" by EVIDENCE and every other thruster's by MARGIN, with its effectiveness 1 + a_i below HEALTHY, for CONFIRM
+vehicle s: `Verdict` says dead (or stuck: a steady push the commands do not move), weak (its share) or reversed.
+The noise of r is learnt from the best filter's innovations. Pure: no I/O.
 """
 
 from __future__ import annotations
@@ -31,16 +30,18 @@ from rov_mav.flight.prediction import MAX_HORIZON, CommandHistory
 from rov_mav.model import kernel
 
 HEALTHY = 0.6             # effectiveness below this is a fault
-CERTAIN = 2.0             # ... when its shortfall from healthy (1) is this many standard deviations of the estimate
+EVIDENCE = 10.0           # nats: how much better a thruster's hypothesis must predict the motion than "all healthy"
+MARGIN = 4.0              # nats: ... and than any other thruster's
 CONFIRM = 0.8             # vehicle s the verdict must hold before it is given
 CONFIRM_REVERSED = 0.3    # ... for a thruster pushing the wrong way (the loop through it diverges within a second)
+MEMORY = 3.0              # vehicle s over which the scores forget
 WARM_UP = 10.0            # vehicle s of samples before any verdict (the disturbance and the noise are learnt first)
 SETTLE = 4.0              # vehicle s after a fault is answered before the next verdict (the transient settles)
 SPAN = 0.25               # vehicle s: each residual spans at least this (the velocity noise over it, not over a sample)
 DEAD = 0.2                # effectiveness below this (and above REVERSED): gives nothing useful
 REVERSED = -0.3           # effectiveness below this: pushes the other way
-SPREAD_A = 0.4            # std of each a_i around 0 (healthy) when nothing is learnt of it
-MEMORY_A = 10.0           # s: time constant over which an a_i unobserved returns to that belief
+SPREAD_A = 1.0            # std of a_i under its hypothesis (dead is -1, reversed -2)
+DRIFT_A = 0.3             # per sqrt(s): a_i's random walk (it steps when the thruster fails)
 PRIOR_D = 30.0            # N or N m: std of the disturbance at the start
 DRIFT_D = 1.0             # N per sqrt(s) of the random walk of d
 NOISE_TIME = 5.0          # s: time constant of the learnt residual noise
@@ -78,9 +79,56 @@ class Verdict:
         return -1.0 if self.kind == "reversed" else self.effectiveness
 
 
+class _Hypothesis:
+    """One filter of the bank: the disturbance d (6,) and, for a thruster's hypothesis, its a_i first."""
+
+    def __init__(self, thruster: int | None):
+        self.thruster = thruster
+        self.k = 0 if thruster is None else 1
+        self.x = np.zeros(self.k + 6)
+        self.P = np.diag([SPREAD_A ** 2] * self.k + [PRIOR_D ** 2] * 6)
+        self.score = 0.0
+        self.innovation = np.zeros(6)
+
+    @property
+    def a(self) -> float:
+        return float(self.x[0]) if self.k else 0.0
+
+    @property
+    def d(self) -> np.ndarray:
+        return self.x[self.k:].copy()
+
+    def restart(self) -> None:
+        """After a fault was answered: a_i back to its prior, the disturbance open to learning, no score."""
+        if self.k:
+            self.x[0] = 0.0
+            self.P[0, :] = self.P[:, 0] = 0.0
+            self.P[0, 0] = SPREAD_A ** 2
+        self.P[self.k:, self.k:] += np.eye(6) * PRIOR_D ** 2
+        self.score = 0.0
+
+    def step(self, r: np.ndarray, column: np.ndarray | None, noise: np.ndarray, span: float, keep: float) -> None:
+        """One residual r (6,); column = B_i fbar_i for a thruster's hypothesis."""
+        k = self.k
+        self.P[k:, k:] += np.eye(6) * DRIFT_D ** 2 * span
+        if k:
+            self.P[0, 0] += DRIFT_A ** 2 * span
+        H = np.eye(6) if not k else np.hstack([column[:, None], np.eye(6)])
+        self.innovation = r - H @ self.x
+        S = H @ self.P @ H.T + np.diag(noise)
+        solved = np.linalg.solve(S, np.hstack([self.innovation[:, None], H @ self.P]))
+        _, logdet = np.linalg.slogdet(S)
+        self.score = keep * self.score - 0.5 * (self.innovation @ solved[:, 0] + logdet)
+        gain = solved[:, 1:].T
+        self.x += gain @ self.innovation
+        self.P -= gain @ H @ self.P
+        self.P = 0.5 * (self.P + self.P.T)
+
+
 class ThrusterHealth:
-    """`told(t_act, thrusts)` for every command, `observe(t, x)` for every new measured state; `verdicts()` the
-    thrusters newly found faulty. `matrix` B (6, n); `model_packed` the controller's model; `slot` s."""
+    """`told(t_act, thrusts)` for every command, `observe(t, x)` for every new measured state; `verdicts(t)` the
+    thrusters newly found faulty. `matrix` B (6, n); `model_packed` the controller's model; `slot` s; the thrusters'
+    first-order lag `time_constant` s."""
 
     def __init__(self, model_packed: np.ndarray, matrix: np.ndarray, slot: float, time_constant: float = 0.0):
         self.model = np.ascontiguousarray(model_packed, dtype=float)
@@ -91,16 +139,15 @@ class ThrusterHealth:
         self.settle = 5.0 * time_constant        # s of commands before a span that set its lagged thrust
         self.mass = self.model[kernel.P_M:kernel.P_M + 36].reshape(6, 6)
         self.thrusts = CommandHistory(self.n)
-        size = self.n + 6
-        self.theta = np.zeros(size)
-        self.P = np.diag(np.r_[np.full(self.n, SPREAD_A ** 2), np.full(6, PRIOR_D ** 2)])
+        self.healthy = _Hypothesis(None)
+        self.faulty = [_Hypothesis(i) for i in range(self.n)]
         self.noise = np.full(6, NOISE_START)
         self.known = np.ones(self.n)            # the effectiveness allocated with (faults already answered)
         self.excluded = np.zeros(self.n, dtype=bool)
         self._previous: tuple[float, np.ndarray] | None = None
         self._first: float | None = None
         self._quiet_until = -np.inf
-        self._below_since = np.full(self.n, np.nan)
+        self._since: tuple[int, float] | None = None     # (thruster, vehicle s) of the standing candidate
         self._d_history: list[tuple[float, np.ndarray]] = []
         self._ws = np.zeros(60)
         self._out = np.zeros(12)
@@ -108,12 +155,18 @@ class ThrusterHealth:
 
     @property
     def effectiveness(self) -> np.ndarray:
-        """(n,) each thruster's estimated share of what it is told (1 healthy), relative to what is allocated."""
-        return 1.0 + self.theta[:self.n]
+        """(n,) each thruster's effectiveness under its own hypothesis (1 healthy), relative to what is allocated."""
+        return 1.0 + np.array([h.a for h in self.faulty])
+
+    @property
+    def evidence(self) -> np.ndarray:
+        """(n,) nats by which each thruster's hypothesis predicts the motion better than "all healthy"."""
+        return np.array([h.score - self.healthy.score for h in self.faulty])
 
     @property
     def disturbance(self) -> np.ndarray:
-        return self.theta[self.n:].copy()
+        """The disturbance as "all healthy" estimates it."""
+        return self.healthy.d
 
     def told(self, t_act: float, thrusts: np.ndarray) -> None:
         """Thrusts (n,) N the thrusters are told to give from vehicle time t_act (what each is expected to give:
@@ -139,8 +192,8 @@ class ThrusterHealth:
                        np.zeros(6), self._out, self._ws)
         self.residual = self.mass @ (x[6:] - self._out[6:]) / span
         self._update(self.residual, _mean_over(lagged, span, self.slot), span)
-        self._d_history.append((t, self.disturbance))
-        while self._d_history and self._d_history[0][0] < t - 2 * MAX_HORIZON - CONFIRM:
+        self._d_history.append((t, self.healthy.d))
+        while self._d_history and self._d_history[0][0] < t - 2 * MAX_HORIZON - MEMORY:
             self._d_history.pop(0)
 
     def _lagged(self, end: float, span: float) -> np.ndarray:
@@ -157,41 +210,34 @@ class ThrusterHealth:
         return out[-(int(np.ceil(span / self.slot)) + 1):]
 
     def _update(self, r: np.ndarray, told: np.ndarray, span: float) -> None:
-        n = self.n
-        keep = np.exp(-span / MEMORY_A)             # a_i: an Ornstein-Uhlenbeck process about 0
-        self.theta[:n] *= keep
-        self.P[:n, :] *= keep
-        self.P[:, :n] *= keep
-        self.P[:n, :n] += np.eye(n) * SPREAD_A ** 2 * (1.0 - keep ** 2)
-        self.P[n:, n:] += np.eye(6) * DRIFT_D ** 2 * span
-        H = np.hstack([self.matrix * told, np.eye(6)])
-        innovation = r - H @ self.theta
-        S = H @ self.P @ H.T + np.diag(self.noise)
-        gain = np.linalg.solve(S, H @ self.P).T
-        self.theta += gain @ innovation
-        self.P -= gain @ H @ self.P
-        self.P = 0.5 * (self.P + self.P.T)
+        keep = np.exp(-span / MEMORY)
+        self.healthy.step(r, None, self.noise, span, keep)
+        for h in self.faulty:
+            if not self.excluded[h.thruster]:
+                h.step(r, self.matrix[:, h.thruster] * told[h.thruster], self.noise, span, keep)
+        best = max([self.healthy, *self.faulty], key=lambda h: h.score)
         k = min(span / NOISE_TIME, 1.0)
-        squared = np.minimum(innovation ** 2, 9.0 * self.noise)   # a fault's transient does not drown the noise
+        squared = np.minimum(best.innovation ** 2, 9.0 * self.noise)   # a fault's transient does not drown the noise
         self.noise = np.maximum(self.noise + k * (squared - self.noise), NOISE_FLOOR)
 
     def verdicts(self, t: float) -> list[Verdict]:
-        """The thrusters newly found not to do what they are told (each named once; answer with `answered`)."""
+        """The thruster newly found not to do what it is told, if any (named once; answer with `answered`)."""
         if self._first is None or t - self._first < WARM_UP or t < self._quiet_until:
             return []
-        g = self.effectiveness
-        sigma = np.sqrt(np.diag(self.P)[:self.n])
-        low = (g < HEALTHY) & (1.0 - g > CERTAIN * sigma) & ~self.excluded
-        if np.count_nonzero(g < HEALTHY) > 1:
-            low[:] = False       # several at once: a push the water gives (waves, a turn in a current), not a thruster
-        self._below_since = np.where(low, np.where(np.isnan(self._below_since), t, self._below_since), np.nan)
-        out = []
-        confirm = np.where(g < REVERSED, CONFIRM_REVERSED, CONFIRM)
-        for i in np.flatnonzero(low & (t - self._below_since >= confirm)):
-            out.append(self._verdict(i, float(g[i]), float(self._below_since[i]), t))
-        return out
+        evidence = np.where(self.excluded, -np.inf, self.evidence)
+        order = np.argsort(evidence)[::-1]
+        i, second = int(order[0]), evidence[order[1]]
+        g = float(self.effectiveness[i])
+        if not (evidence[i] > EVIDENCE and evidence[i] - second > MARGIN and g < HEALTHY):
+            self._since = None
+            return []
+        if self._since is None or self._since[0] != i:
+            self._since = (i, t)
+        if t - self._since[1] < (CONFIRM_REVERSED if g < REVERSED else CONFIRM):
+            return []
+        return [self._verdict(i, g, self._since[1])]
 
-    def _verdict(self, i: int, g: float, since: float, t: float) -> Verdict:
+    def _verdict(self, i: int, g: float, since: float) -> Verdict:
         effectiveness = g * self.known[i]
         if effectiveness < REVERSED:
             return Verdict(i + 1, "reversed", effectiveness, since)
@@ -202,27 +248,24 @@ class ThrusterHealth:
         return Verdict(i + 1, kind, effectiveness, since, push)
 
     def _push_along(self, i: int, since: float) -> float:
-        """The steady thrust along thruster i's column the disturbance took on since just before `since`."""
+        """The steady thrust along thruster i's column its hypothesis's disturbance took on since just before
+        `since` (a stuck thruster's push is constant: the filter puts it in d)."""
         before = [d for t, d in self._d_history if t <= since - CONFIRM]
         if not before:
             return 0.0
         column = self.matrix[:, i]
-        return float(column @ (self.disturbance - before[-1]) / (column @ column))
+        return float(column @ (self.faulty[i].d - before[-1]) / (column @ column))
 
     def answered(self, verdict: Verdict) -> None:
         """The allocation now uses `verdict.gain` for the thruster: what it is told is scaled by it from now on.
-        Every thruster's estimate starts again from healthy (the others' moved to explain the fault's transient), the
-        disturbance is open to learning again (a stuck thruster's push is the water's now) and no verdict comes for
-        SETTLE s (a dead or stuck one is no longer told anything)."""
-        i, n = verdict.thruster - 1, self.n
+        Every hypothesis starts again (scores, a_i; the disturbance open to learning: a stuck thruster's push is the
+        water's now) and no verdict comes for SETTLE s (a dead or stuck one is no longer told anything)."""
+        i = verdict.thruster - 1
         self.known[i] = verdict.gain
         self.excluded[i] = verdict.gain == 0.0
-        self.theta[:n] = 0.0
-        self.P[:n, :] = 0.0
-        self.P[:, :n] = 0.0
-        self.P[:n, :n] = np.eye(n) * SPREAD_A ** 2
-        self.P[n:, n:] += np.eye(6) * PRIOR_D ** 2
-        self._below_since[:] = np.nan
+        for h in (self.healthy, *self.faulty):
+            h.restart()
+        self._since = None
         if self._previous is not None:
             self._quiet_until = self._previous[0] + SETTLE
 

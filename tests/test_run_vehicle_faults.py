@@ -1,0 +1,151 @@
+"""When the vehicle fails under a run, end to end: a bridge process with `--vehicle-faults` (or a station's forced
+reboot command), the runner as a process, an independent station checking the vehicle. Each test fails without the
+runner's answer: the thruster named and flown around, the reboot named with nothing but neutral reaching the
+thrusters, the vehicle's failsafes ending the run at once and left in charge."""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+
+import pytest
+from run_helpers import (
+    armed,
+    assert_left_safe,
+    bridge_with_checker,
+    checker,
+    fresh,
+    runner_against,
+    servo_functions,
+    short_mission,
+)
+
+FAULT_AT = 110.0        # vehicle s after the bridge starts: the run is flying by then (it takes ~40 s to start)
+LONG = 30.0             # m of the mission's leg: 150 s of mission at 0.2 m/s, flying through FAULT_AT
+
+
+def _times(output: str, pattern: str) -> list[float]:
+    """Mission times of the runner's event lines matching `pattern`."""
+    return [float(m.group(1)) for m in re.finditer(r"\[\s*(-?[0-9.]+)\] " + pattern, output)]
+
+
+def test_a_dead_thruster_is_named_within_2_s_and_the_run_flies_on_around_it(tmp_path):
+    mission = short_mission(tmp_path, goto_x=LONG)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults",
+                                               f"thruster=3:dead@{FAULT_AT:g}s", speedup=5.0)
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port, speedup=5.0)
+        try:
+            line = run.wait_for("thruster 3 ", timeout=120.0)
+            seen = float(re.search(r"vehicle t=([0-9.]+) s", line).group(1))
+            assert FAULT_AT < seen <= FAULT_AT + 3.0, line     # the target is 2 s; the table measures it
+            assert "left out" in line or "allocated at" in line, line
+            time.sleep(10.0 / 5.0)                              # 10 s of vehicle time flown on seven thrusters
+            assert run.proc.poll() is None, run.output          # still flying
+            run.signal(15)
+            assert run.wait() == 143, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "limit crossed" not in run.output
+
+
+def test_a_reboot_is_named_only_neutral_reaches_the_thrusters_after_it_and_the_run_restores_what_it_changed(
+        tmp_path):
+    """A station forces the reboot (MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, param6 20190226) while the run flies."""
+    mission = short_mission(tmp_path, goto_x=LONG)
+    speedup = 2.0
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=speedup)
+    outputs: list[tuple[int, list[int]]] = []
+    answered_again: list[float] = []
+    stop = threading.Event()
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port, speedup=speedup)
+        try:
+            run.wait_for("armed in MANUAL")
+            time.sleep(5.0 / speedup)                           # five seconds of flight
+            gcs.send("command_long", 1, 1, 246, 0, 1, 0, 0, 0, 0, 20190226, 0)
+
+            def record() -> None:
+                last_us = None
+                while not stop.is_set():
+                    msg = gcs.conn.recv_match(type="SERVO_OUTPUT_RAW", blocking=True, timeout=0.2)
+                    if msg is None:
+                        continue
+                    if last_us is not None and msg.time_usec < last_us and not answered_again:
+                        answered_again.append(time.monotonic())
+                    last_us = msg.time_usec
+                    if answered_again:
+                        outputs.append((msg.time_usec, [getattr(msg, f"servo{n}_raw") for n in range(1, 9)]))
+
+            recorder = threading.Thread(target=record, daemon=True)
+            recorder.start()
+            code = run.wait()
+            ended = time.monotonic()
+            stop.set()
+            recorder.join()
+            assert code == 7, run.output
+            assert answered_again, "the checker never saw the vehicle's clock go back"
+            assert (ended - answered_again[0]) * speedup <= 5.0          # exit within 5 s of the vehicle answering
+            assert outputs and all(set(pwm) <= {0, 1500} for _, pwm in outputs), outputs
+            assert_left_safe(gcs)
+        finally:
+            stop.set()
+            gcs.close()
+    assert "the vehicle rebooted" in run.output
+
+
+def test_a_leak_with_surface_ends_the_run_at_once_and_leaves_the_vehicle_surfacing_armed(tmp_path):
+    mission = short_mission(tmp_path, goto_x=LONG, depth=2.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "2", "--vehicle-faults",
+                                               f"leak@{FAULT_AT:g}s", "--param", "FS_LEAK_ENABLE=2")
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 8, run.output
+            heartbeat = fresh(gcs, "HEARTBEAT")
+            assert heartbeat.custom_mode == 9 and armed(gcs)             # SURFACE, not fought, not disarmed
+            assert servo_functions(gcs) == list(range(33, 41))            # ArduSub's own motors drive it up
+            depth = fresh(gcs, "LOCAL_POSITION_NED").z
+            time.sleep(0.3)
+            assert fresh(gcs, "LOCAL_POSITION_NED").z < depth - 0.1       # rising
+        finally:
+            gcs.close()
+    leak, stopped = _times(run.output, "WARNING: vehicle: Leak Detected"), _times(run.output, "stopping:")
+    assert leak and stopped and stopped[0] - leak[0] <= 0.5, run.output
+    assert "left to the vehicle's failsafe" in run.output
+
+
+def test_a_critical_battery_with_surface_ends_the_run_and_leaves_the_vehicle_to_it(tmp_path):
+    mission = short_mission(tmp_path, goto_x=LONG, depth=2.0)
+    bridge, checker_port = bridge_with_checker(
+        tmp_path, "--start-depth", "2", "--vehicle-faults", f"battery=0.2V/s@{FAULT_AT:g}s",
+        "--param", "BATT_CRT_VOLT=15.5", "--param", "BATT_FS_CRT_ACT=3", "--param", "BATT_LOW_TIMER=1")
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 8, run.output
+            assert fresh(gcs, "HEARTBEAT").custom_mode == 9 and armed(gcs)
+            assert servo_functions(gcs) == list(range(33, 41))
+        finally:
+            gcs.close()
+    assert "battery critical" in run.output
+
+
+@pytest.mark.parametrize("fault, said", [
+    ("navigation-lost", "lost its horizontal position"),
+    ("depth-sensor", "depth sensor lost"),
+])
+def test_a_lost_position_or_depth_sensor_ends_the_run_naming_it(tmp_path, fault, said):
+    mission = short_mission(tmp_path, goto_x=LONG)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults",
+                                               f"{fault}@{FAULT_AT:g}s")
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 8, run.output
+            assert servo_functions(gcs) == list(range(33, 41))
+        finally:
+            gcs.close()
+    assert said in run.output and "link lost" not in run.output
