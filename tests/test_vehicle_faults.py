@@ -103,3 +103,47 @@ def test_an_environment_carries_its_vehicle_faults(tmp_path):
     path.write_text("environment:\n  vehicle_faults: thruster=0:dead@2s\n")
     with pytest.raises(Exception, match="N from 1 to 8"):
         load_environment(path)
+
+
+def test_offline_thruster_faults_map_the_wrench_through_what_the_thrusters_still_give():
+    from rov_mav.model.thrusters import allocation_matrix
+    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.model.vehicle_faults import wrench_map
+
+    vehicle = load_vehicle(None)
+    B = allocation_matrix(vehicle.thruster_positions, vehicle.thruster_directions)
+    at, F, push = wrench_map(parse_vehicle_faults([]), B, lambda pwm: pwm)
+    assert at == float("inf") and np.allclose(F, np.eye(6)) and not push.any()
+    tau = np.array([10.0, -4.0, 6.0, 0.3, -0.2, 1.5])
+    at, F, push = wrench_map(parse_vehicle_faults(["thruster=3:dead@5s", "thruster=6:stuck=1700@5s"]), B,
+                             lambda pwm: np.full(len(pwm), 25.0))
+    thrusts = np.linalg.pinv(B) @ tau                       # what the offline loop's allocation asks of each
+    given = thrusts.copy()
+    given[2], given[5] = 0.0, 25.0
+    assert at == 5.0 and np.allclose(F @ tau + push, B @ given)
+    with pytest.raises(VehicleFaultError, match="strike together"):
+        wrench_map(parse_vehicle_faults(["thruster=3:dead@5s", "thruster=4:dead@6s"]), B, lambda pwm: pwm)
+
+
+def test_an_offline_run_meets_its_thruster_fault_and_refuses_the_autopilots_faults(tmp_path):
+    from rov_mav.config import ConfigError
+    from rov_mav.control.controller import load_settings
+    from rov_mav.mission.loader import load
+    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.offline.simulation import simulate
+
+    settings, vehicle = load_settings("fuzzy"), load_vehicle(None)
+
+    def mission(faults: str):
+        path = tmp_path / "m.yaml"
+        path.write_text("name: m\nstart: {position: [0.0, 0.0, 1.0], heading: 0.0}\n"
+                        "path:\n  - {goto: [4.0, 0.0, 1.0], speed: 0.2}\n"
+                        f"environment:\n  vehicle_faults: \"{faults}\"\n")
+        return load(path)
+
+    healthy = simulate(mission("thruster=3:dead@1000s"), settings, vehicle)
+    dead = simulate(mission("thruster=3:dead@5s"), settings, vehicle)
+    assert healthy.completed and dead.completed
+    assert np.abs(dead.tau_hat[-1] - healthy.tau_hat[-1]).max() > 0.5   # the law holds against the missing thrust
+    with pytest.raises(ConfigError, match="leak: only the built-in vehicle"):
+        simulate(mission("leak@5s"), settings, vehicle)

@@ -11,7 +11,14 @@ from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
 from rov_mav.model import kernel
-from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, items_of, parse_vehicle_faults
+from rov_mav.model.vehicle_faults import (
+    OFFLINE_VOLTAGE,
+    VehicleFaultError,
+    VehicleFaults,
+    items_of,
+    parse_vehicle_faults,
+    wrench_map,
+)
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
@@ -99,9 +106,15 @@ class Environment:
             return None
         return self.disturbance
 
-    def packed(self) -> np.ndarray:
-        """The flat vector the compiled kernel reads (layout in `rov_mav.model.kernel`)."""
+    def packed(self, vehicle=None) -> np.ndarray:
+        """The flat vector the compiled kernel reads (layout in `rov_mav.model.kernel`). With the plant's `vehicle`
+        (the offline loop's), its thruster faults are packed too (ConfigError for a fault only the built-in vehicle's
+        autopilot can meet); without, none: the bridge applies them to its own thrusters."""
         out = np.zeros(kernel.E_SIZE)
+        out[kernel.E_FAULT_AT] = np.inf
+        out[kernel.E_FAULT_MAP:kernel.E_FAULT_MAP + 36] = np.eye(6).ravel()
+        if vehicle is not None and self.vehicle_faults:
+            out[kernel.E_FAULT_AT:kernel.E_FAULT_PUSH + 6] = self._offline_faults(vehicle)
         out[kernel.E_DIST:kernel.E_DIST + 6] = self.disturbance
         out[kernel.E_AMP:kernel.E_AMP + 6] = self.disturbance_amplitude
         out[kernel.E_PERIOD] = self.disturbance_period
@@ -111,6 +124,24 @@ class Environment:
         out[kernel.E_SAMPLE_DELAY] = self.telemetry[1]
         out[kernel.E_PREDICT] = float(self.predict)
         return out
+
+
+    def _offline_faults(self, vehicle) -> np.ndarray:
+        from rov_mav.model.thrusters import allocation_matrix, thruster_curve
+
+        faults = self.vehicle_faults
+        if faults.autopilot_faults:
+            raise config.ConfigError(f"environment: vehicle_faults: {', '.join(faults.autopilot_faults)}: only the "
+                                     "built-in vehicle's autopilot meets these (rov-mav run, rov-mav sim-bridge); "
+                                     "offline runs take thruster faults only")
+        curve = thruster_curve(vehicle)
+        try:
+            at, matrix, push = wrench_map(faults, allocation_matrix(vehicle.thruster_positions,
+                                                                    vehicle.thruster_directions),
+                                          lambda pwm: curve.thrust(pwm, OFFLINE_VOLTAGE))
+        except VehicleFaultError as exc:
+            raise config.ConfigError(f"environment: vehicle_faults: {exc}") from None
+        return np.r_[at, matrix.ravel(), push]
 
 
 def load_environment(path: str | Path) -> Environment:

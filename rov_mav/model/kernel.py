@@ -32,8 +32,11 @@ P_SIZE = 92
 
 # Packed environment vector: constant disturbance (6), sinusoid amplitude (6), sinusoid period (1),
 # NED current (3), sensor noise std for position, attitude, linear velocity, angular rate (4), telemetry sample
-# period and delay (2, s; 0 = the controller measures every tick, without delay), and whether the controller
-# predicts its late measurement forward (1) or acts on it as it is (0).
+# period and delay (2, s; 0 = the controller measures every tick, without delay), whether the controller
+# predicts its late measurement forward (1) or acts on it as it is (0), and the thrusters' faults as the offline loop
+# meets them: from E_FAULT_AT s (inf: never) the wrench the thrusters give is F tau + push, F (6 x 6, row-major) and
+# push (6) from `rov_mav.model.vehicle_faults.wrench_map` (the bridge applies thruster faults to its thrusters
+# instead, and packs none).
 E_DIST = 0
 E_AMP = 6
 E_PERIOD = 12
@@ -42,7 +45,10 @@ E_NOISE = 16
 E_SAMPLE_PERIOD = 20
 E_SAMPLE_DELAY = 21
 E_PREDICT = 22
-E_SIZE = 23
+E_FAULT_AT = 23
+E_FAULT_MAP = 24
+E_FAULT_PUSH = 60
+E_SIZE = 66
 
 # Floating-point licences for the compiled code: fused multiply-add and reassociation, but NaN and inf keep their
 # meaning (the divergence check relies on them).

@@ -130,6 +130,29 @@ class VehicleFaults:
         return rate * max(t - start, 0.0)
 
 
+OFFLINE_VOLTAGE = 16.0        # V: the battery a stuck thruster's thrust is taken at offline (a charged 4S pack under load)
+
+
+def wrench_map(faults: VehicleFaults, matrix: np.ndarray, thrust_of_pwm) -> tuple[float, np.ndarray, np.ndarray]:
+    """The thruster faults as the offline loop meets them, in wrench space: (from when, F (6, 6), push (6,)) such
+    that the thrusters give F tau + push of a wrench tau allocated by the pseudo-inverse of B (`matrix`, 6 x n):
+    F = B diag(g) B+ with g each thruster's gain (a stuck one 0) and push = B s, s the thrust (`thrust_of_pwm`) of
+    each stuck input. (inf, I, 0) without thruster faults; VehicleFaultError if they strike at different times (the
+    offline loop has one instant)."""
+    times = faults.thruster_times()
+    if not times:
+        return math.inf, np.eye(6), np.zeros(6)
+    if len(times) > 1:
+        raise VehicleFaultError(f"offline runs take thruster faults that strike together: got "
+                                f"{', '.join(f'{t:g}s' for t in times)}")
+    gain, stuck = faults.thruster_effect(times[0])
+    held = ~np.isnan(stuck)
+    pushing = np.zeros(len(gain))
+    pushing[held] = thrust_of_pwm(stuck[held])
+    gain = np.where(held, 0.0, gain)
+    return times[0], matrix @ np.diag(gain) @ np.linalg.pinv(matrix), matrix @ pushing
+
+
 def _time(item: str, text: str) -> float:
     value = parse_duration(text)
     if value is None:

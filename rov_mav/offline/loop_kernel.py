@@ -11,6 +11,9 @@ from numba import njit
 
 from rov_mav.control.law_kernel import STATE_SIZE, controller_step
 from rov_mav.model.kernel import (
+    E_FAULT_AT,
+    E_FAULT_MAP,
+    E_FAULT_PUSH,
     E_NOISE,
     E_PREDICT,
     E_SAMPLE_DELAY,
@@ -81,6 +84,18 @@ def _measure(x, noise, out, rng):
 
 
 @inlined
+def _faulted(env, tau, scratch):
+    """tau (6,) in place -> what failed thrusters give of it: F tau + push (`kernel.E_FAULT_MAP`); scratch (6,)."""
+    for i in range(6):
+        total = env[E_FAULT_PUSH + i]
+        for j in range(6):
+            total += env[E_FAULT_MAP + 6 * i + j] * tau[j]
+        scratch[i] = total
+    for i in range(6):
+        tau[i] = scratch[i]
+
+
+@inlined
 def _running_cost(weights, s, x, ref, tau, tau_ff):
     """s^T Q s + e^T Q_e e + (tau - tau_ff)^T R (tau - tau_ff) at one tick (Eq. 2.32 and its tracking form)."""
     total = 0.0
@@ -102,7 +117,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
     (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
     telemetry delay; only the ticks telemetry delivers are measured); commanded: (R, 6) ring of the wrenches applied
     since, R > the oldest measurement's age in ticks (for the prediction); state: the controller's, zeroed; ws: zeroed
-    workspace (248,). Returns (cost, steps done)."""
+    workspace (254,). Returns (cost, steps done)."""
     n_steps = ref.shape[0] - 1
     record = eta_log.shape[0] > 0
     h = dt / substeps
@@ -123,6 +138,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
     x_prev = ws[158:170]   # the measurement held before
     d_hat = ws[170:176]    # the prediction's disturbance estimate
     ws_predict = ws[176:248]
+    faulted = ws[248:254]  # scratch of the thrusters' faults
     eta_p = x_p[0:6]
     nu_p = x_p[6:12]
     forward = env[E_PREDICT] != 0.0
@@ -177,6 +193,8 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
         for i in range(6):
             applied[i] = min(max(tau[i], -tau_limit[i]), tau_limit[i])
             commanded[newest, i] = applied[i]
+        if k * dt >= env[E_FAULT_AT]:
+            _faulted(env, applied, faulted)
         for j in range(substeps):
             rk4_step(plant, env, x, applied, k * dt + j * h, h, ws_plant)
         if _diverged(x):
@@ -196,7 +214,9 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
     each tick whose measurement telemetry delivers) as telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
     the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.
     Where E_PREDICT is set, the controller acts on the held measurement carried forward to its tick through its own
-    model and the wrenches applied since (`kernel.predict`), as `rov-mav run` predicts its late telemetry.
+    model and the wrenches applied since (`kernel.predict`), as `rov-mav run` predicts its late telemetry. From
+    E_FAULT_AT s on, the plant gets what failed thrusters give of the applied wrench (the controller, not knowing,
+    predicts with what it asked).
     cost (B,) receives Eq. 2.32 extended, J = sum (s^T Q s + e^T Q_e e + u^T R u) dt with u = tau - tau_ff[k],
     e the true tracking error and cost_weights (3, 6) = diagonals of [Q; Q_e; R] (the printed Eq. 2.32:
     Q = R = I, Q_e = 0, tau_ff = 0). A run stops early with DIVERGED_COST when it diverges or when a commanded
@@ -213,4 +233,4 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
                                       x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
                                       nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
                                       np.zeros((late + 1, 12)), np.zeros((late + every + 1, 6)),
-                                      np.zeros(STATE_SIZE), np.zeros(248))
+                                      np.zeros(STATE_SIZE), np.zeros(254))

@@ -48,7 +48,7 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     weights, tau_ff, tau_max, tau_limit = loop_kernel.printed_cost(ref)
     if wrench_limit is not None:
         tau_limit = np.asarray(wrench_limit, float)
-    loop_kernel.simulate_batch(plant.packed()[None], environment.packed()[None], model.packed(), settings.vector[None],
+    loop_kernel.simulate_batch(plant.packed()[None], environment.packed(plant)[None], model.packed(), settings.vector[None],
                                *settings.kernel_arguments(), ref, dt, substeps, x0, np.array([seed], dtype=np.int64),
                                weights, tau_ff, tau_max, tau_limit, *logs, cost, steps)
     done = int(steps[0])

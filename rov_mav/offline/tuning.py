@@ -153,7 +153,7 @@ def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle
     return TuningProblem(
         model=model.packed(),
         plants=np.array([model.scaled(s.plant_scale).packed() for s in scenarios]),
-        envs=np.array([s.environment.packed() for s in scenarios]),
+        envs=np.array([s.environment.packed(model.scaled(s.plant_scale)) for s in scenarios]),
         seeds=np.array([s.seed for s in scenarios], dtype=np.int64),
         controller=settings.kernel_arguments(),
         params=settings.vector,
