@@ -128,16 +128,19 @@ def fly(name: str, strike: float | None, args, folder: Path) -> dict:
 def _said(output: str, name: str) -> str:
     """The run's first line about the fault."""
     if name in ("dead", "stuck", "weak", "reversed"):
-        found = re.search(r"WARNING: (thruster \d [a-z]+[^:]*)", output)
-        return found.group(1) if found else "nothing"
+        found = re.findall(r"WARNING: (thruster \d [a-z]+).*?seen at vehicle", output)
+        return "; then ".join(found) if found else "nothing"
+    if name == "reboot":
+        found = re.search(r"WARNING: (the vehicle rebooted \(.*?\)), first seen as: (.*)", output)
+        return f"{found.group(1)}, first seen as {found.group(2)}" if found else "nothing"
     found = re.search(r"stopping: (.*)", output)
     return found.group(1) if found else "nothing"
 
 
 def _detected(output: str, said: str, strike: float | None, start: float) -> float:
     """Vehicle s from the fault to the run's answer (its thruster line, or its stop)."""
-    if strike is None or said == "nothing":
-        return math.nan
+    if strike is None or said == "nothing" or said.startswith("the vehicle rebooted"):
+        return math.nan       # mission time does not run through the vehicle's silence: see the exit-time test
     seen = re.search(r"vehicle t=([\d.]+) s", output)
     if seen is not None and said.startswith("thruster"):
         return float(seen.group(1)) - strike

@@ -35,6 +35,7 @@ class ThrusterWatch:
         self.full = actuation.allocator.authority()
         self._asked: list[tuple[float, np.ndarray]] = []   # (vehicle s, the largest |tau| per axis over that second)
         self.found: list[tuple[float, Verdict]] = []     # (vehicle s it was named, verdict)
+        self._healthy_until = np.inf            # vehicle s: what the law asked before this measures the mission
 
     def told(self, t_act: float, thrusts: np.ndarray, tau: np.ndarray) -> None:
         self.health.told(t_act, thrusts)
@@ -56,6 +57,7 @@ class ThrusterWatch:
 
     def _answer(self, t: float, verdict: Verdict) -> None:
         self.found.append((t, verdict))
+        self._healthy_until = min(self._healthy_until, verdict.at - LEAD)   # a second fault: still before the first
         try:
             self.actuation.set_gain(verdict.thruster - 1, verdict.gain)
         except ValueError:                     # the allocation's rank: an axis no thruster left can push
@@ -69,7 +71,7 @@ class ThrusterWatch:
                f"allocated at {verdict.gain:.0%}")
         self.say(f"{verdict.describe()}: seen at vehicle t={t:.1f} s, {t - verdict.at:.1f} s after it began; {how}, "
                  f"the allocation re-solved over the others (authority left: {reduced})", "warning")
-        short = [f"{axis} {need:.1f} of {have:.1f}" for axis, need, have in zip(AXES, self.needed(verdict.at - LEAD), left)
+        short = [f"{axis} {need:.1f} of {have:.1f}" for axis, need, have in zip(AXES, self.needed(self._healthy_until), left)
                  if need > FLYABLE_MARGIN * have]
         if short:
             raise Abort(f"{verdict.describe()}: before it, the mission needed more than what is left on "
