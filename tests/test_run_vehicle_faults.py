@@ -117,11 +117,12 @@ def test_a_leak_with_surface_ends_the_run_at_once_and_leaves_the_vehicle_surfaci
     assert "left to the vehicle's failsafe" in run.output
 
 
-def test_a_critical_battery_with_surface_ends_the_run_and_leaves_the_vehicle_to_it(tmp_path):
+def test_a_low_battery_only_warns_and_a_critical_one_with_surface_ends_the_run_leaving_the_vehicle_to_it(tmp_path):
     mission = short_mission(tmp_path, goto_x=LONG, depth=2.0)
     bridge, checker_port = bridge_with_checker(
         tmp_path, "--start-depth", "2", "--vehicle-faults", f"battery=0.2V/s@{FAULT_AT:g}s",
-        "--param", "BATT_CRT_VOLT=15.5", "--param", "BATT_FS_CRT_ACT=3", "--param", "BATT_LOW_TIMER=1")
+        "--param", "BATT_LOW_VOLT=16.2", "--param", "BATT_CRT_VOLT=15.5", "--param", "BATT_FS_CRT_ACT=3",
+        "--param", "BATT_LOW_TIMER=1")
     with runner_against(bridge, mission) as run, bridge:
         gcs = checker(checker_port)
         try:
@@ -130,7 +131,11 @@ def test_a_critical_battery_with_surface_ends_the_run_and_leaves_the_vehicle_to_
             assert servo_functions(gcs) == list(range(33, 41))
         finally:
             gcs.close()
-    assert "battery critical" in run.output
+    low = _times(run.output, r"WARNING: vehicle: Battery 1 is low")
+    critical = _times(run.output, r"WARNING: vehicle: Battery 1 is critical")
+    stopped = _times(run.output, "stopping:")
+    assert low and critical and stopped and low[0] < critical[0] <= stopped[0], run.output   # flown on when low
+    assert stopped[0] - critical[0] <= 0.5 and "battery critical" in run.output
 
 
 @pytest.mark.parametrize("fault, said", [

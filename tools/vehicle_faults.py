@@ -131,8 +131,10 @@ def _said(output: str, name: str) -> str:
         found = re.findall(r"WARNING: (thruster \d [a-z]+).*?seen at vehicle", output)
         return "; then ".join(found) if found else "nothing"
     if name == "reboot":
-        found = re.search(r"WARNING: (the vehicle rebooted \(.*?\)), first seen as: (.*)", output)
-        return f"{found.group(1)}, first seen as {found.group(2)}" if found else "nothing"
+        found = re.search(r"(?:stopping|WARNING): (the vehicle rebooted \(.*?\))(?:, first seen as: (.*))?", output)
+        if found is None:
+            return "nothing"
+        return found.group(1) + (f", first seen as {found.group(2)}" if found.group(2) else ", seen at once")
     found = re.search(r"stopping: (.*)", output)
     return found.group(1) if found else "nothing"
 

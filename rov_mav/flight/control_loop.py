@@ -35,6 +35,7 @@ STALL_PERIODS = 5                # control periods): a busy or suspended compute
 RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
 STARVED_WINDOW = 1.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
 STARVED_SHARE = 0.5
+REBOOTED = 0.5                   # vehicle s: a time this much earlier than the one a reboot went back from is after it
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
 
@@ -131,7 +132,8 @@ class FlightLoop:
         if self.t_start is None:
             return 0.0
         lead = self.lead_in.duration if self.lead_in is not None else 0.0
-        lost = sum(before - after for before, after in self.io.session.clock.reboots[self._reboots:])
+        lost = sum(before - after for before, after in self.io.session.clock.reboots[self._reboots:]
+                   if t < before - REBOOTED)      # a time from after that reboot (the vehicle's clock started again)
         return t + lost - self.t_start - lead
 
     def _notice_stall(self, last: float) -> float:

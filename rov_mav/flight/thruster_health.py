@@ -32,6 +32,8 @@ from rov_mav.model import kernel
 HEALTHY = 0.6             # effectiveness below this is a fault
 EVIDENCE = 10.0           # nats: how much better a thruster's hypothesis must predict the motion than "all healthy"
 MARGIN = 4.0              # nats: ... and than any other thruster's
+AGAIN = 3.0               # each fault already answered multiplies both: thrusters fail one at a time, and the first
+                          # leaves transients and a push (a stuck one's) that another hypothesis can partly explain
 CONFIRM = 0.8             # vehicle s the verdict must hold before it is given
 CONFIRM_REVERSED = 0.3    # ... for a thruster pushing the wrong way (the loop through it diverges within a second)
 MEMORY = 3.0              # vehicle s over which the scores forget
@@ -228,7 +230,8 @@ class ThrusterHealth:
         order = np.argsort(evidence)[::-1]
         i, second = int(order[0]), evidence[order[1]]
         g = float(self.effectiveness[i])
-        if not (evidence[i] > EVIDENCE and evidence[i] - second > MARGIN and g < HEALTHY):
+        scale = AGAIN ** np.count_nonzero(self.known != 1.0)
+        if not (evidence[i] > EVIDENCE * scale and evidence[i] - second > MARGIN * scale and g < HEALTHY):
             self._since = None
             return []
         if self._since is None or self._since[0] != i:
