@@ -398,7 +398,8 @@ def main(args: argparse.Namespace) -> int:
               f"{metrics['rms_position_error_steady_m'] * 100:.2f} cm, max {metrics['max_position_error_m'] * 100:.2f}"
               f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad")
     print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
-          f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms", flush=True)
+          f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters moved "
+          f"{loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)", flush=True)
     print(f"  delays: round trip {loop['round_trip_ms']:.1f} ms (TIMESYNC); state predicted "
           + (f"{loop['horizon_p50_ms']:.1f} ms ahead (p50; p99 {loop['horizon_p99_ms']:.1f} ms)" if args.predict == "on"
              else "not at all (--predict off)")

@@ -77,7 +77,7 @@ class FlightLoop:
         self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
-        self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1)
+        self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         io.mission_time = self.mission_time
         io.watcher = self._watch
         io.on_neutral.append(self._neutral_sent)
@@ -266,7 +266,7 @@ class FlightLoop:
         # telemetry in -> command out, for a new sample's tick (a tick between samples answers no telemetry)
         latency = time.perf_counter() - state.received if fresh else float("nan")
         age = io.session.clock.now() - state.t
-        self._count_tick(state.t, latency, horizon)
+        self._count_tick(state.t, latency, horizon, pwm)
         if t >= 0 and fresh:
             self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
@@ -306,11 +306,11 @@ class FlightLoop:
         session = self.io.session
         self._commanded(session.clock.now() + session.round_trip.seconds, np.zeros(6))
 
-    def _count_tick(self, t: float, latency: float, horizon: float) -> None:
+    def _count_tick(self, t: float, latency: float, horizon: float, pwm: np.ndarray) -> None:
         self._ticks.append(t)
         while self._ticks and self._ticks[0] <= t - 1.0:
             self._ticks.popleft()
-        self.loop.append(tick_time=t, latency_ms=latency * 1e3, horizon_ms=horizon * 1e3)
+        self.loop.append(tick_time=t, latency_ms=latency * 1e3, horizon_ms=horizon * 1e3, pwm=pwm[:CHANNELS])
 
     def _check_limits(self, state: State, reference: np.ndarray) -> None:
         lim = self.options.limits

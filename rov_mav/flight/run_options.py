@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rov_mav.mission.metrics import finite_percentile, loop_figures
+from rov_mav.mission.metrics import finite_percentile, loop_figures, pwm_activity
 
 HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
@@ -86,15 +86,17 @@ class RunResult:
     latency_ms: np.ndarray             # (M,) telemetry in -> command out (NaN for a tick between samples)
     tick_times: np.ndarray             # (M,) vehicle s of every tick
     horizon_ms: np.ndarray             # (M,) how far each tick's state was predicted (0: not predicted)
+    pwm: np.ndarray                    # (M, 8) us each tick sent (GUIDED: the outputs the vehicle reported)
     round_trip_ms: float               # the link's round trip (TIMESYNC median) at the end, nan if never measured
     stalls: int                        # times this process stalled
     report: list[str] = field(default_factory=list)
 
     def loop_figures(self) -> dict:
         """The `loop` block (`mission.metrics.loop_figures`), with the prediction's horizon p50/p99 (ms), the round
-        trip measured and the stalls of this process."""
+        trip measured, the stalls of this process and the thrusters' activity (`mission.metrics.pwm_activity`)."""
         return {**loop_figures(self.tick_times, self.latency_ms),
                 "horizon_p50_ms": finite_percentile(self.horizon_ms, 50),
                 "horizon_p99_ms": finite_percentile(self.horizon_ms, 99),
                 "round_trip_ms": self.round_trip_ms,
-                "stalls": self.stalls}
+                "stalls": self.stalls,
+                "pwm_activity_us_per_s": pwm_activity(self.tick_times, self.pwm)}

@@ -49,6 +49,15 @@ def trace_metrics(mission: str, controller: str, trace) -> dict:
                        trace.true_disturbance, trace.completed)
 
 
+def pwm_activity(t: np.ndarray, pwm: np.ndarray) -> float:
+    """Mean over the thrusters of sum |delta PWM| per second (us/s): how much a run moves its thrusters, noise turned
+    into thruster activity included. t (N,) s; pwm (N, n) us, NaN rows (no output known) skipped."""
+    known = np.all(np.isfinite(pwm), axis=1)
+    t, pwm = t[known], pwm[known]
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    return float(np.mean(np.sum(np.abs(np.diff(pwm, axis=0)), axis=0)) / span) if span > 0 else float("nan")
+
+
 def loop_figures(tick_t: np.ndarray, latency_ms: np.ndarray) -> dict:
     """A run's `loop` block: ticks, achieved rate (ticks per vehicle s), telemetry-in to command-out latency p50 / p99
     (ms, over the finite values: a tick between samples has none)."""
