@@ -11,6 +11,7 @@ from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
 from rov_mav.model import kernel
+from rov_mav.model.navigation import Navigation, NavigationError, parse_navigation
 from rov_mav.model.vehicle_faults import (
     OFFLINE_VOLTAGE,
     VehicleFaultError,
@@ -50,6 +51,17 @@ class EnvironmentSchema(config.StrictModel):
     noise: NoiseSchema = NoiseSchema()
     telemetry: TelemetrySchema = TelemetrySchema()   # offline only: `run` sees the real link's stream
     vehicle_faults: str | list[str] | None = None      # `rov_mav.model.vehicle_faults`' grammar
+    navigation: str | dict | None = None               # a preset or a block (`rov_mav.model.navigation`)
+
+    @field_validator("navigation")
+    @classmethod
+    def _navigation_parses(cls, value):
+        if value is not None:
+            try:
+                parse_navigation(value, "environment: navigation")
+            except NavigationError as exc:
+                raise ValueError(str(exc).removeprefix("environment: navigation: ")) from None
+        return value
 
     @field_validator("vehicle_faults")
     @classmethod
@@ -84,6 +96,7 @@ class Environment:
     telemetry: np.ndarray = field(default_factory=lambda: np.zeros(2))   # sample period (s, 0 = every tick), delay (s)
     predict: bool = True        # the controller predicts its late measurement forward
     vehicle_faults: VehicleFaults = VehicleFaults()   # what fails on the vehicle, and when
+    navigation: Navigation | None = None  # the built-in vehicle's navigation (None: ideal); offline loops ignore it
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":
@@ -97,6 +110,7 @@ class Environment:
             predict=s.telemetry.predict,
             vehicle_faults=(parse_vehicle_faults(items_of(s.vehicle_faults, "environment"))
                             if s.vehicle_faults is not None else VehicleFaults()),
+            navigation=(parse_navigation(s.navigation, "environment") if s.navigation is not None else None),
         )
 
     @property
