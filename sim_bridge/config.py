@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rov_mav.model.environment import Environment
+    from rov_mav.model.navigation import Navigation
     from rov_mav.model.vehicle_faults import VehicleFaults
     from sim_bridge.faults import FaultSpec
 
@@ -33,3 +34,4 @@ class BridgeConfig:
     vehicle_faults: VehicleFaults | None = None       # None: the environment's (sim_bridge/vehicle_faults.py)
     params: dict[str, float] = field(default_factory=dict)
     signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key
+    navigation: Navigation | None = None              # None: the environment's, else ideal (rov_mav/model/navigation.py)

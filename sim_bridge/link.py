@@ -83,6 +83,7 @@ class Link:
         self.address = _resolve(spec, host, port)
         self.encoder = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
         self.signing = self.encoder.signing
+        self._others: dict[tuple[int, int], mavlink.MAVLink] = {}   # other components' encoders (send_as)
         self.rejections = Rejections()
         self.peers: list[_Peer] = []
         self.udp_peer: tuple[str, int] | None = self.address if self.kind == "udpout" else None
@@ -176,6 +177,18 @@ class Link:
             advance(self.signing, time.time())
             self.signing.timestamp &= UINT64_MASK     # a uint64_t in ArduPilot: a SETUP_SIGNING timestamp near 2^64
         self.encoder.send(msg)                        # wraps there, where pymavlink's struct.pack would fail
+
+    def send_as(self, msg, source: tuple[int, int]) -> None:
+        """Send `msg` as another (sysid, compid) on the vehicle's network sends it through the router (a BlueOS
+        extension): its own sequence numbers, the link's signing."""
+        encoder = self._others.get(source)
+        if encoder is None:
+            encoder = self._others[source] = mavlink.MAVLink(self, srcSystem=source[0], srcComponent=source[1])
+            encoder.signing = self.signing
+        if self.signing.sign_outgoing:
+            advance(self.signing, time.time())
+            self.signing.timestamp &= UINT64_MASK
+        encoder.send(msg)
 
     def write(self, buf: bytes) -> None:
         """File interface used by the pymavlink encoder."""

@@ -34,9 +34,11 @@ EPS = 1e-9                      # s: tolerance for float sums of intervals again
 class Scheduler:
     """Which of `names` are due on one link; `stream_rate(group)` reads that link's rate parameter in Hz."""
 
-    def __init__(self, names: tuple[str, ...], stream_rate: Callable[[str], float]):
+    def __init__(self, names: tuple[str, ...], stream_rate: Callable[[str], float],
+                 groups: dict[str, str] | None = None):
         self.names = names
         self.stream_rate = stream_rate
+        self.groups = GROUP_OF if groups is None else groups     # message -> its stream group
         self.explicit: dict[str, float] = {}       # name -> interval s (0 = off)
         self.intervals: dict[str, float] = {}
         self._next: dict[str, float] = {}
@@ -47,7 +49,7 @@ class Scheduler:
         """Interval in s from the stream rates (0 = off)."""
         if name == "HEARTBEAT":
             return HEARTBEAT_INTERVAL
-        group = GROUP_OF.get(name)
+        group = self.groups.get(name)
         return stream_interval_ms(int(self.stream_rate(group)) if group else 0) / 1000.0
 
     def set_interval(self, name: str, interval_us: int, t: float) -> None:

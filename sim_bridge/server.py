@@ -25,6 +25,7 @@ import time
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from rov_mav.model.navigation import PRESETS as NAVIGATION_PRESETS
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_vehicle
@@ -40,7 +41,9 @@ from sim_bridge.pacing import Pacer
 from sim_bridge.params import Params
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
-from sim_bridge.schedule import Scheduler
+from sim_bridge.schedule import GROUP_OF, Scheduler
+from sim_bridge.sensors import Sensors
+from sim_bridge.source_messages import source_messages
 from sim_bridge.signing import VehicleSigning
 from sim_bridge.vehicle_faults import LiveFaults, resolve
 
@@ -69,6 +72,8 @@ class Bridge:
             raise ValueError(f"parameter {self.params.names.sysid}: the vehicle's sysid must be 1 to 255")
         self.vehicle = load_vehicle(config.vehicle_path)
         self.vehicle_faults = resolve(config.vehicle_faults, config.environment)
+        self.navigation = config.navigation or getattr(config.environment, "navigation", None) or \
+            NAVIGATION_PRESETS["ideal"]
         self.live = LiveFaults(self.vehicle_faults)
         plant = Plant(self.vehicle, config.environment, eta0=np.array([0, 0, config.start_depth, 0, 0, 0.0]),
                       seed=config.seed)
@@ -76,6 +81,9 @@ class Bridge:
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
         self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step,
                                self.vehicle_faults)
+        # the navigation's sensors (None: ideal, the plant's state plus the environment's noise, as before)
+        self.sensors = None if self.navigation.ideal else Sensors(self.navigation, config.seed, plant.eta, plant.nu)
+        self.source_messages = 0                  # GPS_INPUT and VISION_POSITION_DELTA sent
         self.signing = VehicleSigning(config.signing_key, time.time())
         self.missions = MissionProtocol(lambda: config.origin)
         self.boot = boot.Boot(config.step)
@@ -91,7 +99,7 @@ class Bridge:
         self._start_firmware()
         self.sub.initialised = True               # the bridge starts with its autopilot booted
         self.servo = self.sub.servo_outputs()
-        self.measured = plant.measured()          # (eta, nu) as the sensors give them now
+        self.measured = plant.measured() if self.sensors is None else (plant.eta, plant.nu)   # the sensors' view
         self.estimate = self._navigate()          # the autopilot's view of them (its EKF's)
         self.pacer: Pacer | None = None
         self._stop = threading.Event()
@@ -185,10 +193,11 @@ class Bridge:
             remaining=avionics.remaining(self.params["BATT_CAPACITY"]), origin=self.config.origin, water_density=self.vehicle.water_density,
             gravity=self.vehicle.gravity, unix_start=self.unix_start + self.boot.start * self.physics.h,
             firmware=self.params.firmware, mission_count=len(self.missions.items), safety_on=sub.safety_on,
-            initialised=sub.initialised, local_position=not nav.const_pos, ekf_flags=nav.flags(uptime),
-            ekf_variances=nav.variances(uptime), battery_state=sub.failsafes.battery,
+            initialised=sub.initialised, local_position=not nav.const_pos, ekf_flags=avionics.flags(uptime),
+            ekf_variances=avionics.variances(uptime), battery_state=sub.failsafes.battery,
             battery_failsafed=sub.failsafes.battery_failsafed, depth_present=avionics.depth_present,
-            depth_healthy=avionics.bar30 is None, bar30_depth=avionics.bar30)
+            depth_healthy=avionics.bar30 is None, bar30_depth=avionics.bar30,
+            truth=(self.physics.plant.eta, self.physics.plant.nu))
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:
@@ -203,7 +212,8 @@ class Bridge:
             self.params.reboot()
         self.sub = ArduSub(self.params)
         self.sub.initialised = False
-        self.avionics = Avionics(self.live, self.physics.battery, self.t)
+        plant = self.physics.plant
+        self.avionics = Avionics(self.live, self.physics.battery, self.t, self.navigation, (plant.eta, plant.nu))
         stored = self.missions.items
         self.missions = MissionProtocol(lambda: self.config.origin)
         self.missions.items = stored
@@ -217,10 +227,13 @@ class Bridge:
     def _start_streams(self) -> None:
         """The main loop's streams: every link's scheduler, from the stored rates."""
         names, uptime = tuple(telemetry.BUILDERS), self.uptime
-        self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g))
+        groups = None if self.sensors is None else {**GROUP_OF, "SIM_STATE": "EXTRA1"}   # the truth, as SITL's
+        self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g), groups)
                            for link in self.links]
         for scheduler in self.schedulers:
             scheduler.refresh(uptime)
+        if self.sensors is not None and self.links:      # the EKF origin, as ArduSub announces it once set
+            self._broadcast(telemetry.gps_global_origin(self.snapshot()))
 
     def _power_off(self) -> None:
         """The autopilot loses its power: silent, outputs without pulses, TCP clients dropped."""
@@ -268,11 +281,14 @@ class Bridge:
         with self._lock:
             self.physics.step(self.servo[:8], self.t)
             self.steps += 1
-        self.measured = self.physics.plant.measured()
         previous, phase = phase, self.boot.phase(self.steps)
         if phase != boot.OFF and previous == boot.OFF:
             self._start_firmware()
-        if phase != boot.OFF:
+        if self.sensors is None:
+            self.measured = self.physics.plant.measured()
+            if phase != boot.OFF:
+                self.estimate = self._navigate()
+        elif self._sense(phase) and phase != boot.OFF:   # the estimate moves only with a sample (50 Hz or more)
             self.estimate = self._navigate()
         if phase == boot.RUNNING and previous != boot.RUNNING:
             self.sub.initialised = True
@@ -284,6 +300,25 @@ class Bridge:
             self._booting()
             return
         self._send_due()
+
+    def _sense(self, phase: int) -> bool:
+        """Navigations other than ideal: the sensors sampled from the truth, what reached the autopilot fed to its
+        estimator (not while it is off), the sources' own messages sent on every link (their extensions run on the
+        companion computer, through the autopilot's reboots)."""
+        plant, t = self.physics.plant, self.t
+        if t + 1e-9 < self.sensors.next_event:
+            return False
+        items = self.sensors.sample(t, plant.eta, plant.nu, self.live.navigation_ok(t), self.live.depth_sensor_ok(t))
+        if not items:
+            return False
+        if phase != boot.OFF:
+            self.avionics.feed(items)
+        heading = float(self.estimate[0][5])
+        for msg, source in source_messages(items, self.config.origin, heading):
+            self.source_messages += 1
+            for link in self.links:
+                link.send_as(msg, source)
+        return True
 
     def _send_due(self) -> None:
         """The main loop's output: texts, the streams due on each link, the mission protocol's requests."""

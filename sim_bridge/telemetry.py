@@ -71,6 +71,7 @@ class Snapshot:
     depth_present: bool = True           # the depth sensor found at boot
     depth_healthy: bool = True
     bar30_depth: float | None = None     # m, what the depth sensor reads (None: the estimate's depth)
+    truth: tuple[np.ndarray, np.ndarray] | None = None   # the plant's (eta, nu), for SIM_STATE
 
     @property
     def ms(self) -> int:
@@ -207,6 +208,36 @@ def home_position(s: Snapshot):
                                         [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, s.t_us)
 
 
+def _latlon(origin: tuple[float, float, float], north: float, east: float) -> tuple[float, float]:
+    lat0, lon0, _ = origin
+    return (lat0 + math.degrees(north / EARTH_RADIUS),
+            lon0 + math.degrees(east / (EARTH_RADIUS * math.cos(math.radians(lat0)))))
+
+
+def sim_state(s: Snapshot):
+    """The simulator's truth as ArduPilot SITL reports it (`SIM::sim_state_send`): attitude (quaternion and
+    Euler, yaw within +-pi), body specific force (here gravity only: the plant's acceleration is not kept), body
+    rates, lat/lon as SITL fills them (the float fields carry degE7, and the int extensions too), altitude above sea
+    level (the origin's altitude less the depth), standard deviations 0, NED velocity."""
+    if s.truth is None:
+        return None
+    eta, nu = s.truth
+    phi, theta, psi = (float(a) for a in wrap_angle(eta[3:6]))
+    r = rotation(eta)
+    accel = r.T @ np.array([0.0, 0.0, -s.gravity])
+    v = r @ nu[:3]
+    lat, lon = _latlon(s.origin, float(eta[0]), float(eta[1]))
+    return ENCODER.sim_state_encode(*quaternion(phi, theta, psi), phi, theta, psi, *map(float, accel),
+                                    *map(float, nu[3:6]), lat * 1e7, lon * 1e7, float(s.origin[2] - eta[2]), 0.0,
+                                    0.0, *map(float, v), round(lat * 1e7), round(lon * 1e7))
+
+
+def gps_global_origin(s: Snapshot):
+    """The EKF origin (`GCS_MAVLINK::send_gps_global_origin`): `--origin`, altitude in mm."""
+    lat0, lon0, alt0 = s.origin
+    return ENCODER.gps_global_origin_encode(round(lat0 * 1e7), round(lon0 * 1e7), round(alt0 * 1000), s.t_us)
+
+
 BUILDERS = {
     "HEARTBEAT": heartbeat,
     "ATTITUDE": attitude,
@@ -224,5 +255,7 @@ BUILDERS = {
     "AUTOPILOT_VERSION": autopilot_version,
     "HOME_POSITION": home_position,
     "MISSION_CURRENT": mission_current,
+    "SIM_STATE": sim_state,
+    "GPS_GLOBAL_ORIGIN": gps_global_origin,
 }
 NAME_OF_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in BUILDERS}

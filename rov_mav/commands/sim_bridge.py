@@ -9,6 +9,7 @@ import sys
 from rov_mav.commands.arguments import endpoint, number, seed, speedup
 from rov_mav.commands.common import add_signing_options, signing_key
 from rov_mav.model.environment import load_environment
+from rov_mav.model.navigation import PRESET_NAMES, Navigation, NavigationError, load_navigation
 from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, load_vehicle_faults
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
 from sim_bridge.faults import FaultError, FaultSpec, load_faults
@@ -92,6 +93,13 @@ def _vehicle_faults(text: str) -> VehicleFaults:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _navigation(text: str) -> Navigation:
+    try:
+        return load_navigation(text)
+    except NavigationError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _param(text: str) -> tuple[str, float]:
     """NAME=VALUE with VALUE a finite float32, as MAVLink carries parameters (whether NAME exists is the bridge's
     to say)."""
@@ -148,6 +156,14 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "navigation-lost@T[+D] (for D, or for good), depth-sensor@T, times with their unit, e.g. "
                         "thruster=3:dead@60s,reboot@90s; or a YAML file holding vehicle_faults: (that text or a "
                         "list of items). Replaces an --environment file's vehicle_faults")
+    p.add_argument("--navigation", type=_navigation, metavar="NAME|FILE",
+                   help=f"how the vehicle knows where it is: {', '.join(PRESET_NAMES)} (ideal, the default: the "
+                        "plant's state plus the environment's noise, valid from boot; none: attitude and depth "
+                        "only, no LOCAL_POSITION_NED; dvl: a DVL A50-class bottom-track velocity, dead reckoning "
+                        "that drifts; ugps: Underwater GPS G2-class acoustic fixes, late, noisy with range, with "
+                        "outliers and dropouts), fused by an EKF3 stand-in; or a YAML file with a navigation: block "
+                        "(preset: and any of imu:, compass:, bar30:, dvl:, ugps: with their parameters). Replaces "
+                        "an --environment file's navigation")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
     add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
@@ -165,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
                           step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args),
-                          faults=args.link_faults, vehicle_faults=args.vehicle_faults)
+                          faults=args.link_faults, vehicle_faults=args.vehicle_faults, navigation=args.navigation)
     from sim_bridge.server import (
         Bridge,  # the physics stack loads only when a bridge runs
     )
@@ -183,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
     faults = f", link faults {args.link_faults.describe()}" if args.link_faults is not None else ""
     if bridge.vehicle_faults:
         faults += f", vehicle faults {bridge.vehicle_faults.describe()}"
+    if not bridge.navigation.ideal:
+        faults += f", navigation {bridge.navigation.describe()}"
     print(f"sim-bridge: ArduSub {args.firmware} ({bridge.vehicle.name}) on {', '.join(endpoints)}, "
           f"speedup {args.speedup:g}{', MAVLink 2 signing on' if bridge.signing.enabled else ''}{faults}", flush=True)
     previous = {sig: signal.signal(sig, lambda *_: bridge.request_stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
