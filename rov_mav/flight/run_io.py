@@ -24,7 +24,8 @@ class RunIO:
         self.options = options
         self.changes = changes
         self.sinks = sinks
-        self.decoder = StateDecoder(options.velocity_blend)
+        self.decoder = StateDecoder(options.velocity_blend, steady=True)
+        self._jumps_said = 0
         self.last_state: State | None = None
         self.signal_name: str | None = None
         self.stopping = False
@@ -58,6 +59,10 @@ class RunIO:
         if received is None:
             return None
         self.last_state = self.decoder.state(received)
+        jumps = self.decoder.jumps.jumps
+        while self._jumps_said < len(jumps):
+            self.say(jumps[self._jumps_said].describe(), "warning")
+            self._jumps_said += 1
         return self.last_state
 
     def pump_for(self, vehicle_seconds: float) -> None:

@@ -1,6 +1,7 @@
 """The state the law needs, (t, eta, nu), decoded from ArduSub's telemetry on the vehicle's own clock.
 
-eta = [x, y, z (LOCAL_POSITION_NED), roll, pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
+eta = [x, y, z (LOCAL_POSITION_NED, less a jump of the estimate still being taken in: `EstimateJumps`), roll,
+pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
 (blended with the position's rate below `velocity_blend` rad/s: `VelocityBlend`) rotated into the body frame, and
 ATTITUDE's body rates. The older of the two messages is brought forward to the newer one's time by its own rates
 (the reported NED velocity, the body rates through T(Theta)), so that position and attitude are of one instant.
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rov_mav.flight.estimate_jumps import EstimateJumps
 from rov_mav.flight.velocity_blend import VelocityBlend
 from rov_mav.model.dynamics import euler_rate_matrix, rotation
 
@@ -37,8 +39,9 @@ class State:
 class StateDecoder:
     """Feed it the vehicle's messages; `update` says when a new state is complete, `state` decodes it."""
 
-    def __init__(self, velocity_blend: float = 0.0):
+    def __init__(self, velocity_blend: float = 0.0, steady: bool = False):
         self.blend = VelocityBlend(velocity_blend)
+        self.jumps = EstimateJumps() if steady else None   # the estimate's jumps taken in at a flyable pace (a run)
         self.voltage: float | None = None     # V, from SYS_STATUS
         self.servo: np.ndarray | None = None  # (8,) SERVO1..8 PWM as the vehicle reports them
         self._latest: dict[str, object] = {}  # the latest message of each state kind
@@ -106,6 +109,8 @@ class StateDecoder:
         # the older half brought forward to the sample's time by its own rates (by half a period at most)
         eta[:3] += reported_v * (t - t_position)
         eta[3:] += euler_rate_matrix(eta) @ rates * (t - t_attitude)
+        if self.jumps is not None:
+            eta[:3] = self.jumps.steady(t, eta[:3], reported_v)
         v_ned = self.blend.update(t, eta[:3], reported_v)
         v_body = rotation(eta).T @ v_ned
         nu = np.array([*v_body, a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)

@@ -1,0 +1,65 @@
+"""A position estimate that jumps (an acoustic fix after a dropout, a DVL or EKF reset), taken in at a pace the
+vehicle can fly instead of all at once.
+
+An EKF's LOCAL_POSITION_NED carries no reset counter (`GCS_MAVLINK::send_local_position`): a reset shows only as a
+jump. Each new position is set against where the previous one, carried forward by the reported NED velocity, says
+the vehicle is; a difference beyond what the estimate's own scatter allows (JUMP_SIGMAS times its learnt standard
+deviation, and at least JUMP_MIN) is a jump, not motion. The jump is held as an offset, the law sees the position
+without it, and the offset is brought back to zero at CATCH_UP m/s: the vehicle moves to where the estimate now puts
+it as it would along a slow path, not with the thrust a metre of sudden error asks for. Pure: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+JUMP_MIN = 0.25           # m: no smaller step is a jump
+JUMP_SIGMAS = 8.0         # ... nor one within this many standard deviations of the estimate's own scatter
+CATCH_UP = 0.1            # m/s: the pace a jump is taken in at (half the default lead-in's speed)
+SCATTER_TIME = 5.0        # s: time constant of the learnt scatter
+SCATTER_START = 0.02      # m: the scatter assumed before any is learnt
+MAX_GAP = 2.0             # s: after a longer silence the position is taken as it is (nothing to carry forward)
+
+
+@dataclass(frozen=True)
+class Jump:
+    t: float              # vehicle s of the position that jumped
+    step: np.ndarray      # (3,) m, NED: how far the estimate jumped beyond where its motion put it
+
+    def describe(self) -> str:
+        n, e, d = self.step
+        return (f"the position estimate jumped {np.linalg.norm(self.step):.2f} m (north {n:+.2f}, east {e:+.2f}, "
+                f"down {d:+.2f}) beyond its own motion: a fix after a dropout or a reset; taken in at "
+                f"{CATCH_UP:g} m/s over {np.linalg.norm(self.step) / CATCH_UP:.0f} s")
+
+
+class EstimateJumps:
+    """`steady(t, position, v_ned)` -> the position the law sees (the reported one less the jumps still being taken
+    in); `jumps` lists every jump seen, `offset` is what is still held."""
+
+    def __init__(self):
+        self.offset = np.zeros(3)
+        self.jumps: list[Jump] = []
+        self._scatter = SCATTER_START ** 2
+        self._last: tuple[float, np.ndarray, np.ndarray] | None = None   # (t, position seen, NED velocity)
+
+    def steady(self, t: float, position: np.ndarray, v_ned: np.ndarray) -> np.ndarray:
+        position = np.asarray(position, dtype=float)
+        last, self._last = self._last, None
+        if last is not None and 0.0 < t - last[0] <= MAX_GAP:
+            dt = t - last[0]
+            residual = position - self.offset - (last[1] + last[2] * dt)
+            size = float(np.linalg.norm(residual))
+            if size > max(JUMP_MIN, JUMP_SIGMAS * np.sqrt(self._scatter)):
+                self.offset = self.offset + residual
+                self.jumps.append(Jump(t, residual))
+            else:
+                self._scatter += min(dt / SCATTER_TIME, 1.0) * (size ** 2 / 3.0 - self._scatter)
+            held = float(np.linalg.norm(self.offset))
+            if held > 0.0:
+                self.offset *= max(held - CATCH_UP * dt, 0.0) / held
+        seen = position - self.offset
+        self._last = (t, seen, np.asarray(v_ned, dtype=float))
+        return seen
