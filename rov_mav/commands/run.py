@@ -280,7 +280,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.run_options import THRUSTERS, Limits, RunOptions
     from rov_mav.flight.runner import Runner, warm_up
     from rov_mav.flight.status import StatusLine
-    from rov_mav.mission.metrics import run_metrics
+    from rov_mav.mission.metrics import run_metrics, truth_metrics
     from rov_mav.model.vehicle import load_vehicle
 
     if (args.mission is None) != args.mission_from_vehicle or (args.mission_from_vehicle and args.target is None):
@@ -384,6 +384,7 @@ def main(args: argparse.Namespace) -> int:
     flown = result.t >= 0.0   # the mission proper, without the lead-in to its start
     metrics = run_metrics(mission.name, kind, result.t[flown], result.eta[flown], result.eta_d[flown],
                           result.tau[flown], result.tau_hat[flown], true_disturbance, result.completed)
+    metrics.update(truth_metrics(result.truth[flown], result.eta_d[flown]))
     metrics["loop"] = loop
     if args.metrics:
         path = Path(args.metrics)
@@ -396,7 +397,10 @@ def main(args: argparse.Namespace) -> int:
     if result.t.size:
         print(f"  position error RMS {metrics['rms_position_error_m'] * 100:.2f} cm (steady "
               f"{metrics['rms_position_error_steady_m'] * 100:.2f} cm, max {metrics['max_position_error_m'] * 100:.2f}"
-              f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad")
+              f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad"
+              + (f"; against the truth (SIM_STATE) RMS {metrics['rms_position_error_truth_m'] * 100:.2f} cm, max "
+                 f"{metrics['max_position_error_truth_m'] * 100:.2f} cm" if "rms_position_error_truth_m" in metrics
+                 else ""))
     print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
           f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters moved "
           f"{loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)", flush=True)

@@ -35,6 +35,7 @@ STALL_PERIODS = 5                # control periods): a busy or suspended compute
 RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
 STARVED_WINDOW = 1.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
 STARVED_SHARE = 0.5
+TRUTH_AGE = 0.5                  # vehicle s: a true position (SIM_STATE) this near the state's time is its truth
 REBOOTED = 0.5                   # vehicle s: a time this much earlier than the one a reboot went back from is after it
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
@@ -76,7 +77,7 @@ class FlightLoop:
         self._held_tau = np.zeros(6)             # the wrench of the last command sent
         self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
-        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6)
+        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3)
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         io.mission_time = self.mission_time
         io.watcher = self._watch
@@ -267,13 +268,15 @@ class FlightLoop:
         latency = time.perf_counter() - state.received if fresh else float("nan")
         age = io.session.clock.now() - state.t
         self._count_tick(state.t, latency, horizon, pwm)
+        truth = io.truth.position if io.truth.t is not None and abs(io.truth.t - state.t) <= TRUTH_AGE else None
         if t >= 0 and fresh:
-            self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat)
+            self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat,
+                            truth=truth if truth is not None else np.full(3, np.nan))
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
                             progress=self.mission.progress(t), telemetry_age=age, latency=latency,
                             control_rate=len(self._ticks), battery_voltage=self.actuation.voltage, horizon=horizon,
-                            true_disturbance=self.true_disturbance)
+                            true_disturbance=self.true_disturbance, truth=truth)
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration

@@ -13,6 +13,7 @@ import numpy as np
 from rov_mav.flight.link import CHANNELS, NEUTRAL, Session, mavlink
 from rov_mav.flight.run_options import Abort, RunOptions
 from rov_mav.flight.vehicle_changes import VehicleChanges
+from rov_mav.flight.truth import Truth
 from rov_mav.flight.vehicle_state import State, StateDecoder
 
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
@@ -25,6 +26,7 @@ class RunIO:
         self.changes = changes
         self.sinks = sinks
         self.decoder = StateDecoder(options.velocity_blend, steady=True)
+        self.truth = Truth()                      # where a simulator says the vehicle really is (SIM_STATE)
         self._jumps_said = 0
         self.last_state: State | None = None
         self.signal_name: str | None = None
@@ -80,6 +82,7 @@ class RunIO:
             self.rc_seen.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
         if self.watcher is not None and self.flying_since is not None and not self.stopping:
             self.watcher(msg, kind)
+        self.truth.update(msg, self.session.clock.now())
         return self.decoder.update(msg)
 
     def send_neutral(self) -> None:

@@ -81,6 +81,7 @@ class RunResult:
     t: np.ndarray                      # (N,) mission ticks, vehicle s since the mission started
     eta: np.ndarray                    # (N, 6)
     eta_d: np.ndarray                  # (N, 6)
+    truth: np.ndarray                  # (N, 3) true NED position where a simulator says it (SIM_STATE), else NaN
     tau: np.ndarray                    # (N, 6)
     tau_hat: np.ndarray                # (N, 6)
     latency_ms: np.ndarray             # (M,) telemetry in -> command out (NaN for a tick between samples)

@@ -20,6 +20,8 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+
 from rov_mav.flight.tick import TickRecord
 
 DOF = ("x", "y", "z", "phi", "theta", "psi")
@@ -29,6 +31,7 @@ WRENCH = ("X", "Y", "Z", "K", "M", "N")
 REFERENCE = tuple(f"{d}{suffix}" for suffix in ("_d", "_dot_d", "_ddot_d") for d in DOF)
 THRUSTS = tuple(f"thrust_{i}" for i in range(1, 9))
 PWMS = tuple(f"pwm_{i}" for i in range(1, 9))
+TRUTH = ("x_true", "y_true", "z_true")     # where a simulator says the vehicle really is (empty on a real one)
 
 
 def per_wrench(name: str) -> tuple[str, ...]:
@@ -43,7 +46,7 @@ def per_dof(name: str) -> tuple[str, ...]:
 
 COLUMNS = ("t", "vehicle_time", "progress", *DOF, *BODY, *REFERENCE, *per_wrench("tau"), *per_wrench("tau_hat"),
            *per_dof("s"), *per_dof("gamma"), *THRUSTS, *PWMS, "telemetry_age", "latency", "control_rate",
-           "battery_voltage", "horizon")
+           "battery_voltage", "horizon", *TRUTH)
 RUN_INFO = "run.json"
 _STOP = object()
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
@@ -65,7 +68,8 @@ def tick_row(r: TickRecord) -> list[str]:
     every other value to 9 significant digits."""
     times = [repr(float(r.t)), repr(float(r.vehicle_time))]
     values = [r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
-              *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage, r.horizon]
+              *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage, r.horizon,
+              *(r.truth if r.truth is not None else (np.nan,) * 3)]
     return times + [f"{float(v):.9g}" for v in values]
 
 

@@ -29,3 +29,4 @@ class TickRecord:
     battery_voltage: float          # V
     horizon: float = 0.0            # s the state was predicted forward (measurement to when the command acts)
     true_disturbance: np.ndarray | None = None   # (6,) when known (simulation)
+    truth: np.ndarray | None = None  # (3,) true NED position when a simulator says it (SIM_STATE), else None

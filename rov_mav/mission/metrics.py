@@ -7,6 +7,17 @@ import numpy as np
 from rov_mav.control.law import tracking_error
 
 
+def truth_metrics(truth: np.ndarray, eta_d: np.ndarray) -> dict:
+    """RMS and max position error against the truth (a simulator's SIM_STATE), over the samples that have it; {} when
+    none does (a real vehicle). truth (N, 3), eta_d (N, 6)."""
+    known = np.all(np.isfinite(truth), axis=1)
+    if not known.any():
+        return {}
+    error = np.linalg.norm(truth[known] - eta_d[known, :3], axis=1)
+    return {"rms_position_error_truth_m": _rms(error), "max_position_error_truth_m": float(error.max()),
+            "truth_samples": int(known.sum())}
+
+
 def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position error norm (m) and attitude error norm (rad, angles wrapped) per sample; (N, 6) -> (N,), (N,)."""
     e = tracking_error(eta, eta_d)

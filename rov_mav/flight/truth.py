@@ -1,0 +1,46 @@
+"""The vehicle's true position, where a simulator puts it on the link: SIM_STATE, as ArduPilot SITL sends it
+(`SITL::SIM::sim_state_send`, from `GCS_MAVLINK::send_sim_state`), and the built-in vehicle does the same.
+
+SIM_STATE gives latitude and longitude (lat_int/lon_int in 1e-7 degrees when present: the float fields are too coarse
+for centimetres) and altitude; with the EKF origin (GPS_GLOBAL_ORIGIN) or, failing it, HOME_POSITION they become the
+NED position LOCAL_POSITION_NED is relative to, on the same flat earth the vehicle uses. A real vehicle sends no
+SIM_STATE: then there is no truth, and nothing is reported against it. SIM_STATE carries no timestamp: it is taken
+as of the vehicle time it arrives at. Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+EARTH_RADIUS = 6378137.0     # m: ArduPilot's flat-earth conversion (`Location::get_distance_NE`)
+
+
+class Truth:
+    """`update(msg, t)` with any message; `position` the latest true NED position (None until an origin and a
+    SIM_STATE have both arrived), `t` the vehicle time it arrived at."""
+
+    def __init__(self):
+        self.origin: tuple[float, float, float] | None = None   # lat deg, lon deg, alt m
+        self.from_home = False
+        self.position: np.ndarray | None = None
+        self.t: float | None = None
+
+    def update(self, msg, t: float) -> bool:
+        """Take one message at vehicle time t; True when it gives a new true position."""
+        kind = msg.get_type()
+        if kind == "GPS_GLOBAL_ORIGIN":
+            self.origin, self.from_home = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3), False
+        elif kind == "HOME_POSITION" and (self.origin is None or self.from_home):
+            self.origin, self.from_home = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3), True
+        elif kind == "SIM_STATE" and self.origin is not None:
+            lat = msg.lat_int * 1e-7 if msg.lat_int else msg.lat
+            lon = msg.lon_int * 1e-7 if msg.lon_int else msg.lon
+            lat0, lon0, alt0 = self.origin
+            self.position = np.array([math.radians(lat - lat0) * EARTH_RADIUS,
+                                      math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)),
+                                      alt0 - msg.alt])
+            self.t = t
+            return True
+        return False
