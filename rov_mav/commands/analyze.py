@@ -104,6 +104,9 @@ def summary(label: str, m: dict) -> list[str]:
         lines.append(f"  tracking: position RMS {_cm(m['rms_position_error_m'])} (steady "
                      f"{_cm(m['rms_position_error_steady_m'])}, max {_cm(m['max_position_error_m'])}); attitude RMS "
                      f"{_num(m['rms_attitude_error_rad'], '.4f')} rad")
+        if "rms_position_error_truth_m" in m:
+            lines.append(f"  against the truth (SIM_STATE, {m['truth_samples']} samples): position RMS "
+                         f"{_cm(m['rms_position_error_truth_m'])}, max {_cm(m['max_position_error_truth_m'])}")
     elif "path" in m:
         p = m["path"]
         closest = ", ".join(_cm(v) for v in p["closest_approach_m"][:6])
@@ -117,6 +120,9 @@ def summary(label: str, m: dict) -> list[str]:
             f"{loop['latency_p99_ms']:.2f} ms" if _finite(loop["latency_p50_ms"]) else ""
         lines.append(f"  loop: {loop['ticks']} commands at {loop['control_rate_hz']:.1f} Hz of vehicle time{latency} "
                      f"({loop['source']})")
+    if _finite(loop.get("pwm_activity_us_per_s", float("nan"))):
+        lines.append(f"  thrusters moved {loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second, "
+                     + ("as commanded)" if loop.get("source") == "ticks.csv" else "SERVO_OUTPUT_RAW as reported)"))
     if "telemetry" in m:
         tm = m["telemetry"]
         lines.append(f"  telemetry: {tm['samples']} states at {_num(tm['rate_hz'], '.1f')} Hz; {tm['gaps']} gap(s) "

@@ -15,6 +15,7 @@ import numpy as np
 
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, MOTOR_TEST_PWM, NEUTRAL, mavlink
+from rov_mav.flight.truth import Truth
 from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
 from rov_mav.mission.mission_items import MissionItem
 
@@ -58,11 +59,15 @@ class Dive:
     home: object | None                           # the vehicle's last HOME_POSITION
     origin: object | None                         # ... and GPS_GLOBAL_ORIGIN
     others: set[int] = field(default_factory=set)      # other systems (sysids) on the link
+    truth_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (T,) SIM_STATE's log times ...
+    truth: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))     # (T, 3) ... the true NED position
 
 
 class DiveRecorder:
     def __init__(self):
         self.decoder = StateDecoder()
+        self.truth = Truth()                      # a simulator's SIM_STATE, when the log has one
+        self._truth = History(wall=1, position=3)
         self.vehicle: tuple[int, int] | None = None
         self.vehicle_type: int | None = None
         self._held: list[tuple[float, object]] = []
@@ -119,7 +124,8 @@ class DiveRecorder:
             mode=self._heartbeats.column("mode").astype(int),
             texts=self.texts, params=self.params, param_changes=self.param_changes,
             mission=self._mission, mission_complete=self._mission_complete, mission_progress=self.mission_progress,
-            home=self.home, origin=self.origin, others=self.others)
+            home=self.home, origin=self.origin, others=self.others,
+            truth_wall=self._truth.column("wall"), truth=self._truth.column("position"))
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
 
@@ -145,6 +151,8 @@ class DiveRecorder:
         boot_ms = getattr(msg, "time_boot_ms", None)
         if boot_ms is not None:
             self._clock.append(wall=wall, t=boot_ms / 1000.0)
+        if self.truth.update(msg, wall):
+            self._truth.append(wall=wall, position=self.truth.position)
         if self.decoder.update(msg):
             state = self.decoder.state(wall)
             self._states.append(t=state.t, wall=wall, eta=state.eta, nu=state.nu)

@@ -18,8 +18,8 @@ import numpy as np
 
 from rov_mav.config import ConfigError
 from rov_mav.flight.link import CHANNELS, mavlink
-from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS, per_dof, per_wrench
-from rov_mav.mission.metrics import loop_figures, run_metrics
+from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS, TRUTH, per_dof, per_wrench
+from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, truth_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis
@@ -32,6 +32,7 @@ from rov_mav.telemetry.entities import TickColumns
 AUTO = 3                         # ArduSub's custom_mode of AUTO
 MATCH_TICKS = 50                 # ticks matched against the log's states to find their vehicle time
 LISTED_GAPS = 20                 # telemetry gaps put in the events one by one
+TRUTH_WALL = 0.1                 # log s: a SIM_STATE recorded this near a state is its truth
 SEVERITY_LEVEL = {mavlink.MAV_SEVERITY_EMERGENCY: "ERROR", mavlink.MAV_SEVERITY_ALERT: "ERROR",
                   mavlink.MAV_SEVERITY_CRITICAL: "ERROR", mavlink.MAV_SEVERITY_ERROR: "ERROR",
                   mavlink.MAV_SEVERITY_WARNING: "WARNING"}
@@ -121,6 +122,7 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
         reference = mission.reference(t)
         metrics.update(_tracking(mission.name, None, t[flown], dive.eta[flown], reference[flown, :6], None,
                                  completed=bool(flown.any() and t[flown][-1] >= mission.duration)))
+        metrics.update(truth_metrics(_truth_at(dive, dive.state_wall[flown]), reference[flown, :6]))
         reference_path = mission.sampled_reference(0.1)[:, :3]
         metrics["reference"] = {"kind": "mission", "source": mission.source, "mission_start_s": t0,
                                 "mission_start_from": how}
@@ -150,6 +152,8 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
         loop["source"] = f"RC_CHANNELS_OVERRIDE from sysid {main}, " + (
             "thruster PWMs (RCIN passthrough); latency on the log's clock" if thrusters
             else "pilot inputs (outputs not on passthrough)")
+    outputs = _within(dive.servo_t, window)
+    loop["pwm_activity_us_per_s"] = pwm_activity(dive.servo_t[outputs], dive.servo[outputs])   # as reported
     metrics["loop"] = loop
     review = DiveReview(label=path.name, metrics=metrics, warnings=warnings, events=[], trace=trace, internals=False,
                         columns=columns, planned=planned, reference_path=reference_path)
@@ -211,6 +215,20 @@ def _tlog_columns(dive: Dive, t: np.ndarray, t0: float, reference: np.ndarray | 
                        telemetry_age=age, control_rate=window.astype(float), battery_voltage=voltage)
 
 
+def _truth_at(dive: Dive, wall: np.ndarray) -> np.ndarray:
+    """(N, 3) the true position (SIM_STATE) recorded with each of these log times, NaN where none was within
+    TRUTH_WALL s (a real vehicle's log has none)."""
+    out = np.full((wall.size, 3), np.nan)
+    if not dive.truth_wall.size:
+        return out
+    i = np.clip(np.searchsorted(dive.truth_wall, wall), 0, dive.truth_wall.size - 1)
+    before = np.clip(i - 1, 0, dive.truth_wall.size - 1)
+    nearest = np.where(np.abs(dive.truth_wall[before] - wall) < np.abs(dive.truth_wall[i] - wall), before, i)
+    close = np.abs(dive.truth_wall[nearest] - wall) <= TRUTH_WALL
+    out[close] = dive.truth[nearest[close]]
+    return out
+
+
 def _held(t_source: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
     """`values` sampled at `t`, each the last known (the first before any)."""
     order = np.argsort(t_source, kind="stable")
@@ -257,8 +275,10 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                                  {name: value[flown] for name, value in internals.items()},
                                  completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
                                  true_disturbance=truth))
+        metrics.update(truth_metrics(column_block(ticks, TRUTH)[flown], reference[flown, :6]))
         latency = ticks["latency"] * 1e3 if "latency" in ticks else np.full(t.size, np.nan)
-        metrics["loop"] = {**loop_figures(t, latency), "source": "ticks.csv"}
+        metrics["loop"] = {**loop_figures(t, latency), "source": "ticks.csv",
+                           "pwm_activity_us_per_s": pwm_activity(t[t >= 0], column_block(ticks, PWMS)[t >= 0])}
         metrics["reference"] = {"kind": "mission" if mission is not None else "ticks.csv",
                                 "source": mission.source if mission is not None else "ticks.csv",
                                 "mission_start_s": offset, "mission_start_from": how or "unknown (no mavlink.tlog)"}
