@@ -147,3 +147,14 @@ def test_an_offline_run_meets_its_thruster_fault_and_refuses_the_autopilots_faul
     assert np.abs(dead.tau_hat[-1] - healthy.tau_hat[-1]).max() > 0.5   # the law holds against the missing thrust
     with pytest.raises(ConfigError, match="leak: only the built-in vehicle"):
         simulate(mission("leak@5s"), settings, vehicle)
+
+
+def test_a_navigation_reset_moves_the_estimate_from_its_instant_and_resets_add_up():
+    faults = parse_vehicle_faults(["navigation-reset=0.8/0.6@60s", "navigation-reset=-1/0@70s"])
+    assert np.allclose(faults.navigation_offset(59.9), 0.0)
+    assert np.allclose(faults.navigation_offset(60.0), [0.8, 0.6, 0.0])
+    assert np.allclose(faults.navigation_offset(75.0), [-0.2, 0.6, 0.0])
+    assert faults.autopilot_faults == ["navigation-reset"]
+    assert parse_vehicle_faults(faults.describe().split(",")) == faults
+    with pytest.raises(VehicleFaultError, match="NORTH/EAST@TIME"):
+        parse_vehicle_faults(["navigation-reset=1@5s"])

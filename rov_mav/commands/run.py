@@ -189,7 +189,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="built-in vehicle only: make it fail on purpose, in vehicle s since it started (as "
                         "`rov-mav sim-bridge --vehicle-faults`; replaces the mission's environment: vehicle_faults): "
                         "thruster=N:dead|stuck=PWM|weak=K|reversed@T, reboot@T, leak@T, battery=RATE[@T] (V/s), "
-                        "navigation-lost@T[+D], depth-sensor@T, comma-separated, e.g. thruster=3:dead@60s")
+                        "navigation-lost@T[+D], navigation-reset=N/E@T (m), depth-sensor@T, comma-separated, e.g. "
+                        "thruster=3:dead@60s")
     add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
                            "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
                            "the key is refused. The built-in vehicle gets the same key.")

@@ -14,6 +14,8 @@ holding `vehicle_faults:` as that text or as a list of items. Items:
 - `battery=RATE@T`         the pack sags RATE volts per second (e.g. 0.05V/s) more than its own discharge, from T
                            (from 0 without @T), down to the failsafe thresholds it will cross
 - `navigation-lost@T[+D]`  the horizontal position source is gone from T (for D, e.g. +20s; for good without it)
+- `navigation-reset=N/E@T` the position estimate jumps N m north and E m east at T and stays so (a DVL's "set
+                           position", a reset to a new acoustic fix): the vehicle has not moved, its belief has
 - `depth-sensor@T`         the depth sensor (Bar30) fails from T on
 
 A thruster fault acts on the plant, so offline runs take it too (`rov_mav.model.environment`); the others meet
@@ -35,7 +37,7 @@ from rov_mav.units import parse_duration
 THRUSTERS = 8
 THRUSTER_KINDS = ("dead", "stuck", "weak", "reversed")
 EVENTS = ("reboot", "leak", "depth-sensor")
-KEYS = ("thruster", "battery", "navigation-lost", *EVENTS)
+KEYS = ("thruster", "battery", "navigation-lost", "navigation-reset", *EVENTS)
 EXAMPLE = "thruster=3:dead@60s,reboot@90s,leak@100s,battery=0.05V/s,navigation-lost@30s+10s,depth-sensor@50s"
 PWM_RANGE = (1100, 1900)       # us: a stuck input stays within what an ESC takes as a command
 _RATE = re.compile(r"^\s*([0-9.eE+-]+)\s*V/s\s*$", re.IGNORECASE)
@@ -73,11 +75,12 @@ class VehicleFaults:
     leak: float | None = None
     battery: tuple[float, float] | None = None           # (V/s of extra sag, from)
     navigation_lost: tuple[tuple[float, float], ...] = ()  # (from, for how long; inf = for good)
+    navigation_resets: tuple[tuple[float, float, float], ...] = ()   # (at, north m, east m)
     depth_sensor: float | None = None
 
     def __bool__(self) -> bool:
         return bool(self.thrusters or self.reboots or self.leak is not None or self.battery is not None
-                    or self.navigation_lost or self.depth_sensor is not None)
+                    or self.navigation_lost or self.navigation_resets or self.depth_sensor is not None)
 
     def describe(self) -> str:
         parts = [f.describe() for f in self.thrusters] + [f"reboot@{t:g}s" for t in self.reboots]
@@ -86,6 +89,7 @@ class VehicleFaults:
         if self.battery is not None:
             parts.append(f"battery={self.battery[0]:g}V/s@{self.battery[1]:g}s")
         parts += [f"navigation-lost@{t:g}s" + (f"+{d:g}s" if math.isfinite(d) else "") for t, d in self.navigation_lost]
+        parts += [f"navigation-reset={n:g}/{e:g}@{t:g}s" for t, n, e in self.navigation_resets]
         if self.depth_sensor is not None:
             parts.append(f"depth-sensor@{self.depth_sensor:g}s")
         return ",".join(parts) or "none"
@@ -95,7 +99,8 @@ class VehicleFaults:
         """The faults that need the built-in vehicle's autopilot (all but the thrusters'), by name."""
         names = (["reboot"] if self.reboots else []) + (["leak"] if self.leak is not None else [])
         names += (["battery"] if self.battery is not None else []) + (
-            ["navigation-lost"] if self.navigation_lost else [])
+            ["navigation-lost"] if self.navigation_lost else []) + (
+            ["navigation-reset"] if self.navigation_resets else [])
         return names + (["depth-sensor"] if self.depth_sensor is not None else [])
 
     def thruster_effect(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -115,6 +120,14 @@ class VehicleFaults:
 
     def navigation_ok(self, t: float) -> bool:
         return not any(start <= t < start + length for start, length in self.navigation_lost)
+
+    def navigation_offset(self, t: float) -> np.ndarray:
+        """(3,) m NED: how far the position estimate has been moved by the resets up to t."""
+        out = np.zeros(3)
+        for at, north, east in self.navigation_resets:
+            if t >= at:
+                out[:2] += (north, east)
+        return out
 
     def depth_sensor_ok(self, t: float) -> bool:
         return self.depth_sensor is None or t < self.depth_sensor
@@ -210,6 +223,19 @@ def _battery(item: str, value: str) -> tuple[float, float]:
     return rate, _time(item, when) if sep else 0.0
 
 
+def _reset(item: str, value: str) -> tuple[float, float, float]:
+    step, sep, when = value.partition("@")
+    north, slash, east = step.partition("/")
+    try:
+        moved = (float(north), float(east)) if slash else (math.nan, math.nan)
+    except ValueError:
+        moved = (math.nan, math.nan)
+    if not sep or not all(math.isfinite(v) and abs(v) <= 1000 for v in moved):
+        raise VehicleFaultError(f"{item}: expected navigation-reset=NORTH/EAST@TIME in metres (at most 1000 each), "
+                                "e.g. navigation-reset=0.8/0.6@60s")
+    return _time(item, when), *moved
+
+
 def _navigation(item: str, when: str) -> tuple[float, float]:
     start, sep, length = when.partition("+")
     duration = _time(item, length) if sep else math.inf
@@ -223,6 +249,7 @@ def parse_vehicle_faults(items: list[str]) -> VehicleFaults:
     thrusters: list[ThrusterFault] = []
     reboots: list[float] = []
     navigation: list[tuple[float, float]] = []
+    resets: list[tuple[float, float, float]] = []
     single: dict[str, object] = {}
     for raw in items:
         item = raw.strip()
@@ -236,6 +263,9 @@ def parse_vehicle_faults(items: list[str]) -> VehicleFaults:
                                     f"(e.g. {EXAMPLE})")
         if key == "thruster":
             thrusters.append(_thruster(item, value))
+            continue
+        if key == "navigation-reset":
+            resets.append(_reset(item, value))
             continue
         if key in single:
             raise VehicleFaultError(f"{key} is given twice")
@@ -252,6 +282,7 @@ def parse_vehicle_faults(items: list[str]) -> VehicleFaults:
             single[key] = _time(item, value[1:])
     return VehicleFaults(thrusters=tuple(thrusters), reboots=tuple(sorted(reboots)), leak=single.get("leak"),
                          battery=single.get("battery"), navigation_lost=tuple(sorted(navigation)),
+                         navigation_resets=tuple(sorted(resets)),
                          depth_sensor=single.get("depth-sensor"))
 
 
