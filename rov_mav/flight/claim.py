@@ -61,8 +61,19 @@ class VehicleClaim:
                 changes.streams.append(msg_id)
             elif name in ("ATTITUDE", "LOCAL_POSITION_NED"):
                 raise Abort(f"the vehicle refused SET_MESSAGE_INTERVAL for {name} at {hz:g} Hz")
+        self._ask_origin()
         self._wait_for_state()
         self._check_rates()
+
+    def _ask_origin(self) -> None:
+        """The EKF origin LOCAL_POSITION_NED is relative to (GPS_GLOBAL_ORIGIN, or HOME_POSITION where the vehicle
+        has none to give: ArduPilot sends them on MAV_CMD_REQUEST_MESSAGE), so that a simulator's true position
+        (SIM_STATE, `flight.truth`) can be set against the estimate. A real vehicle's answer changes nothing."""
+        s = self.io.session
+        for name in ("GPS_GLOBAL_ORIGIN", "HOME_POSITION"):
+            if s.command(mavlink.MAV_CMD_REQUEST_MESSAGE, getattr(mavlink, f"MAVLINK_MSG_ID_{name}")) == \
+                    mavlink.MAV_RESULT_ACCEPTED:
+                return
 
     def _observe(self, since: float, passthrough: list[str]) -> Sighting:
         """Watch the link for OBSERVE vehicle s, sending nothing but one-shot requests for RC_CHANNELS and

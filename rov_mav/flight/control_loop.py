@@ -35,6 +35,7 @@ STALL_PERIODS = 5                # control periods): a busy or suspended compute
 RESUME_RAMP = 0.3                # vehicle s over which the first commands after a stall move from the one held
 STARVED_WINDOW = 1.0             # wall s: a run stalled for more than STARVED_SHARE of it cannot control the vehicle
 STARVED_SHARE = 0.5
+POSITION_LOST_FOR = 1.0          # vehicle s of EKF_STATUS_REPORTs without a position that stop a run (not a flicker)
 TRUTH_AGE = 0.5                  # vehicle s: a true position (SIM_STATE) this near the state's time is its truth
 REBOOTED = 0.5                   # vehicle s: a time this much earlier than the one a reboot went back from is after it
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
@@ -77,6 +78,7 @@ class FlightLoop:
         self._held_tau = np.zeros(6)             # the wrench of the last command sent
         self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
+        self._position_lost_at: float | None = None   # vehicle s since when it has shown none
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3)
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         io.mission_time = self.mission_time
@@ -206,10 +208,13 @@ class FlightLoop:
             raise VehicleFailsafe(f"the vehicle's failsafe: {fault.name} (\"{msg.text}\")", now, EXIT_FAILSAFE)
         if kind == "EKF_STATUS_REPORT":
             if not position_lost(msg.flags):
-                self._position_reported = True
+                self._position_reported, self._position_lost_at = True, None
             elif self._position_reported:
-                raise VehicleFailsafe(f"the vehicle's estimator has lost its horizontal position (EKF_STATUS_REPORT "
-                                      f"flags 0x{msg.flags:04x}): no position to fly on", now, EXIT_FAILSAFE)
+                self._position_lost_at = now if self._position_lost_at is None else self._position_lost_at
+                if now - self._position_lost_at >= POSITION_LOST_FOR:
+                    raise VehicleFailsafe(f"the vehicle's estimator has lost its horizontal position for "
+                                          f"{now - self._position_lost_at:.1f} s (EKF_STATUS_REPORT flags "
+                                          f"0x{msg.flags:04x}): no position to fly on", now, EXIT_FAILSAFE)
 
     def _tick(self, state: State) -> bool:
         """One control tick; True when the mission is complete."""

@@ -278,7 +278,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
         metrics.update(truth_metrics(column_block(ticks, TRUTH)[flown], reference[flown, :6]))
         latency = ticks["latency"] * 1e3 if "latency" in ticks else np.full(t.size, np.nan)
         metrics["loop"] = {**loop_figures(t, latency), "source": "ticks.csv",
-                           "pwm_activity_us_per_s": pwm_activity(t[t >= 0], column_block(ticks, PWMS)[t >= 0])}
+                           "pwm_activity_us_per_s": pwm_activity(t, column_block(ticks, PWMS))}   # as the run's
         metrics["reference"] = {"kind": "mission" if mission is not None else "ticks.csv",
                                 "source": mission.source if mission is not None else "ticks.csv",
                                 "mission_start_s": offset, "mission_start_from": how or "unknown (no mavlink.tlog)"}

@@ -1,0 +1,51 @@
+"""A run on navigation as a dive has it, end to end: the built-in vehicle's acoustic positioning (`navigation: ugps`
+in the mission's environment) with its own estimator, and the run's figures against the truth it also sends
+(SIM_STATE), read back the same by `analyze`; on the ideal navigation (no SIM_STATE) nothing is claimed about a
+truth."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+
+from run_helpers import ROV_MAV, RunnerProcess
+
+MISSION = """name: navtest
+start: {position: [0.0, 0.0, 1.0], heading: 0.0}
+path:
+  - {goto: [3.0, 0.0, 1.0], speed: 0.2}
+environment:
+  disturbance: [-1.0, 1.0, 2.0, 0.1, 0.1, 0.0]
+  navigation: NAVIGATION
+"""
+
+
+def _fly(tmp_path, navigation: str) -> tuple[int, str, dict, dict]:
+    """The run's exit status, output and metrics, and `analyze`'s metrics of its log."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text(MISSION.replace("NAVIGATION", navigation))
+    metrics, log, analyzed = tmp_path / "metrics.json", tmp_path / "log", tmp_path / "analyzed.json"
+    with RunnerProcess(str(mission), "--speedup", "5", "--metrics", str(metrics), "--log", str(log)) as run:
+        code = run.wait()
+    subprocess.run([ROV_MAV, "analyze", str(log), "--metrics", str(analyzed), "--rerun", "off", "--out",
+                    str(tmp_path / "review")], check=True, capture_output=True, timeout=300)
+    return code, run.output, json.loads(metrics.read_text()), json.loads(analyzed.read_text())
+
+
+def test_on_acoustic_positioning_the_error_is_measured_against_the_truth_beside_the_estimate(tmp_path):
+    code, output, ran, analyzed = _fly(tmp_path, "ugps")
+    assert code == 0, output
+    truth, estimate = ran["rms_position_error_truth_m"], ran["rms_position_error_m"]
+    assert math.isfinite(truth) and ran["truth_samples"] > 100
+    assert truth > estimate          # flying the estimate well is not flying the vehicle well: the fixes' error stays
+    assert math.isclose(analyzed["rms_position_error_truth_m"], truth, rel_tol=1e-6)
+    assert "against the truth (SIM_STATE)" in output
+    assert ran["loop"]["pwm_activity_us_per_s"] > 0
+
+
+def test_on_the_ideal_navigation_nothing_is_claimed_about_a_truth(tmp_path):
+    code, output, ran, analyzed = _fly(tmp_path, "ideal")
+    assert code == 0, output
+    assert "rms_position_error_truth_m" not in ran and "rms_position_error_truth_m" not in analyzed
+    assert "against the truth" not in output
