@@ -84,6 +84,7 @@ class Bridge:
         # the navigation's sensors (None: ideal, the plant's state plus the environment's noise, as before)
         self.sensors = None if self.navigation.ideal else Sensors(self.navigation, config.seed, plant.eta, plant.nu)
         self.source_messages = 0                  # GPS_INPUT and VISION_POSITION_DELTA sent
+        self._origin_told: set[int] = set()
         self.signing = VehicleSigning(config.signing_key, time.time())
         self.missions = MissionProtocol(lambda: config.origin)
         self.boot = boot.Boot(config.step)
@@ -232,8 +233,7 @@ class Bridge:
                            for link in self.links]
         for scheduler in self.schedulers:
             scheduler.refresh(uptime)
-        if self.sensors is not None and self.links:      # the EKF origin, as ArduSub announces it once set
-            self._broadcast(telemetry.gps_global_origin(self.snapshot()))
+        self._origin_told = set()                        # links told the EKF origin since this boot (see _receive)
 
     def _power_off(self) -> None:
         """The autopilot loses its power: silent, outputs without pulses, TCP clients dropped."""
@@ -354,6 +354,11 @@ class Bridge:
         for link, scheduler in zip(self.links, self.schedulers or [None] * len(self.links)):
             for msg in link.receive():
                 self.messages_received += 1
+                if running and self.sensors is not None and link.channel not in self._origin_told:
+                    # the EKF origin, as ArduSub announces it once set; here once per link when someone is first
+                    # heard on it (chosen: on a udpin link nobody listens at boot, and the truth needs the origin)
+                    self._origin_told.add(link.channel)
+                    link.send(telemetry.gps_global_origin(self.snapshot()))
                 if msg.get_msgId() in mavlink.mavlink_map:
                     self.message_types.add(msg.get_type())
                 if not running:

@@ -236,7 +236,7 @@ def test_sim_state_is_the_truth_and_the_estimate_differs_from_it_a_little():
     assert north == pytest.approx(eta[0], abs=0.02)
     assert last.alt == pytest.approx(alt0 - eta[2], abs=0.01)
     assert last.lat == pytest.approx(last.lat_int, abs=1.0)         # degE7 in the float too, as SITL
-    assert len(link.of("GPS_GLOBAL_ORIGIN")) == 1
+    assert not link.of("GPS_GLOBAL_ORIGIN")                        # nobody heard on the link yet
     errors = []
     sim_times = np.array([t for t, _, _ in sim])
     for t, m, _ in link.of("LOCAL_POSITION_NED"):
@@ -270,15 +270,18 @@ def test_a_ground_station_sees_the_sources_and_the_truth_from_their_ids():
         gcs = Gcs(bridge.port, speedup=bridge.speedup)
         seen: dict[str, set] = {}
         gcs.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and len(seen) < 4:
-            msg = gcs.conn.recv_match(type=["GPS_INPUT", "VISION_POSITION_DELTA", "SIM_STATE", "HEARTBEAT"],
-                                      blocking=True, timeout=1)
-            if msg is not None:
+        deadline, origin = time.monotonic() + 10, None
+        while time.monotonic() < deadline and (len(seen) < 4 or origin is None):
+            msg = gcs.conn.recv_match(type=["GPS_INPUT", "VISION_POSITION_DELTA", "SIM_STATE", "HEARTBEAT",
+                                            "GPS_GLOBAL_ORIGIN"], blocking=True, timeout=1)
+            if msg is not None and msg.get_type() == "GPS_GLOBAL_ORIGIN":
+                origin = msg
+            elif msg is not None:
                 seen.setdefault(msg.get_type(), set()).add((msg.get_srcSystem(), msg.get_srcComponent()))
         gcs.conn.close()
     assert seen == {"GPS_INPUT": {(1, 220)}, "VISION_POSITION_DELTA": {(255, 0)}, "SIM_STATE": {(1, 1)},
                     "HEARTBEAT": {(1, 1)}}
+    assert origin is not None and origin.latitude == round(bridge.bridge.config.origin[0] * 1e7)
 
 
 def test_an_environment_file_carries_the_navigation(tmp_path):
