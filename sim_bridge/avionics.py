@@ -10,6 +10,9 @@
   GPS glitching (bit 15) while acoustic fixes are rejected.
 - The battery monitor (AP_BattMonitor's analog backend): the pack's terminal voltage (with the fault's sag) and the
   charge counted from boot (a reboot starts it from 0 again), the share left of BATT_CAPACITY.
+- A navigation reset (`navigation-reset=N/E@T`): the estimate's position moved by (N, E) from T on and left there, as
+  after a DVL's "set position" (a VISION_POSITION_ESTIMATE with its reset_counter stepped: `AP_VisualOdom_MAV`); on
+  acoustic fixes a real EKF would then be pulled back by the fixes, this one is not (the worst case for a run).
 - The leak probe.
 `sensors()` gathers them for the failsafes (`sim_bridge.failsafes.Sensors`).
 """
@@ -58,7 +61,12 @@ class Avionics:
         if self.estimator is not None:
             measured = self.estimator.output
             source_ok = source_ok and self.nav.has_position_source and t - self.estimator.aided_at < AID_GAP
-        return self.navigation.update(uptime, source_ok, depth_ok, measured)
+        eta, nu = self.navigation.update(uptime, source_ok, depth_ok, measured)
+        offset = self.live.navigation_offset(t)
+        if offset.any():
+            eta = eta.copy()
+            eta[:3] += offset
+        return eta, nu
 
     def feed(self, items: list) -> None:
         """The sensors' samples that reached the autopilot (navigations other than ideal)."""

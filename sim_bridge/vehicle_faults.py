@@ -46,3 +46,6 @@ class LiveFaults:
 
     def depth_sensor_ok(self, t: float) -> bool:
         return self.faults.depth_sensor_ok(t)
+
+    def navigation_offset(self, t: float):
+        return self.faults.navigation_offset(t)

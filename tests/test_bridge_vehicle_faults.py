@@ -18,6 +18,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from test_bridge_gcs import ROV_MAV, WAIT, BridgeProcess, BridgeThread, Gcs, free_port, mavutil
 
 from rov_mav.model.dynamics import rotation
+from rov_mav.model.navigation import PRESETS as NAVIGATION_PRESETS
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_vehicle
@@ -292,6 +293,9 @@ class Recorder:
 
     def send(self, msg) -> None:
         self.sent.append((round(self.bridge.t, 4), msg))
+
+    def send_as(self, msg, source: tuple[int, int]) -> None:
+        self.send(msg)
 
     def receive(self) -> list:
         out, self.inbox = self.inbox, []
@@ -593,3 +597,16 @@ def test_help_explains_the_vehicle_faults():
     r = subprocess.run([ROV_MAV, "sim-bridge", "--help"], capture_output=True, text=True, timeout=60)
     for words in ("--vehicle-faults", "navigation-lost@T[+D]", "FS_LEAK_ENABLE", "SURFACE", "ArduPilot Ready"):
         assert words in r.stdout
+
+
+@pytest.mark.parametrize("navigation", ["ideal", "ugps"])
+def test_a_navigation_reset_moves_the_estimate_not_the_vehicle(navigation):
+    """navigation-reset=0.8/-0.6@2s: LOCAL_POSITION_NED steps by (0.8, -0.6) m against where it was going, the plant
+    (the truth) does not move."""
+    b, link = stepped("navigation-reset=0.8/-0.6@2s", start_depth=1.0, navigation=NAVIGATION_PRESETS[navigation])
+    advance(b, 1.9)
+    before, truth_before = b.estimate[0][:3].copy(), b.truth()[1][:3]
+    advance(b, 0.2)
+    after, truth_after = b.estimate[0][:3].copy(), b.truth()[1][:3]
+    assert np.allclose(after - before, [0.8, -0.6, 0.0], atol=0.05)
+    assert np.allclose(truth_after, truth_before, atol=0.01)

@@ -153,7 +153,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "reboots): comma-separated thruster=N:dead@T, thruster=N:stuck=PWM@T (1100..1900 us), "
                         "thruster=N:weak=K@T (0 < K < 1), thruster=N:reversed@T (N = motor 1..8), reboot@T "
                         "(repeatable), leak@T, battery=RATE[@T] (extra sag in V/s, e.g. 0.05V/s), "
-                        "navigation-lost@T[+D] (for D, or for good), depth-sensor@T, times with their unit, e.g. "
+                        "navigation-lost@T[+D] (for D, or for good), navigation-reset=N/E@T (the estimate moved N m "
+                        "north, E m east: a DVL's set position), depth-sensor@T, times with their unit, e.g. "
                         "thruster=3:dead@60s,reboot@90s; or a YAML file holding vehicle_faults: (that text or a "
                         "list of items). Replaces an --environment file's vehicle_faults")
     p.add_argument("--navigation", type=_navigation, metavar="NAME|FILE",
