@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.flight.estimate_jumps import CATCH_UP, EstimateJumps
+from rov_mav.flight.estimate_jumps import CATCH_ACCEL, CATCH_UP, EstimateJumps, catch_up_time
 
 
 def _fly(positions, velocities, dt=0.02):
@@ -30,4 +30,8 @@ def test_a_one_metre_jump_is_taken_in_at_the_catch_up_pace_and_nothing_faster():
     assert np.allclose(guard.jumps[0].step, [0.8, -0.6, 0.0])
     speed = np.linalg.norm(np.diff(seen, axis=0), axis=1) / 0.02
     assert speed.max() <= CATCH_UP * (1 + 1e-9)           # the law never sees the step, only the pace
-    assert np.allclose(seen[t >= 5.0 + 1.0 / CATCH_UP + 0.1], p[-1])   # all of it taken in after 10 s
+    assert np.abs(np.diff(speed)).max() / 0.02 <= CATCH_ACCEL * 2.0   # reached and left gently (no kick)
+    done = 5.0 + catch_up_time(1.0)
+    assert np.isclose(catch_up_time(1.0), 12.0)
+    assert np.allclose(seen[t >= done + 0.1], p[-1], atol=1e-3)      # all of it taken in
+    assert not np.allclose(seen[t <= done - 1.0][-1], p[-1], atol=1e-3)

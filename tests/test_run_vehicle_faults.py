@@ -9,6 +9,7 @@ import re
 import threading
 import time
 
+import numpy as np
 import pytest
 from run_helpers import (
     armed,
@@ -154,3 +155,31 @@ def test_a_lost_position_or_depth_sensor_ends_the_run_naming_it(tmp_path, fault,
         finally:
             gcs.close()
     assert said in run.output and "link lost" not in run.output
+
+
+def test_a_reset_that_moves_the_estimate_a_metre_is_taken_in_at_a_flyable_pace_without_a_lunge(tmp_path):
+    """navigation-reset=0.8/0.6@T: the estimate jumps 1 m; the run says so and brings it in at 0.1 m/s, its thrust
+    within a fifth of the path's own before it (taken in at once, 12.9 N against the path's 8.4: measured), and
+    flies on."""
+    mission = short_mission(tmp_path, goto_x=LONG)
+    log = tmp_path / "log"
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults",
+                                               f"navigation-reset=0.8/0.6@{FAULT_AT:g}s")
+    with runner_against(bridge, mission, "--log", str(log)) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            line = run.wait_for("the position estimate jumped", timeout=120.0)
+            time.sleep(15.0 / 10.0)                             # 15 s of vehicle time after it
+            assert run.proc.poll() is None, run.output          # still flying
+            run.signal(15)
+            assert run.wait() == 143, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    assert "jumped 1.00 m" in line and "taken in at 0.1 m/s" in line, line
+    ticks = np.genfromtxt(log / "ticks.csv", delimiter=",", names=True)
+    jump = _times(run.output, "WARNING: the position estimate jumped")[0]
+    force = np.hypot(ticks["tau_X"], ticks["tau_Y"])
+    before = force[(ticks["t"] > jump - 20.0) & (ticks["t"] < jump)].max()
+    after = force[(ticks["t"] >= jump) & (ticks["t"] < jump + 12.0)].max()
+    assert after <= 1.2 * before, (before, after)               # no lunge: without the pace, 1.5x the path's

@@ -5,8 +5,10 @@ An EKF's LOCAL_POSITION_NED carries no reset counter (`GCS_MAVLINK::send_local_p
 jump. Each new position is set against where the previous one, carried forward by the reported NED velocity, says
 the vehicle is; a difference beyond what the estimate's own scatter allows (JUMP_SIGMAS times its learnt standard
 deviation, and at least JUMP_MIN) is a jump, not motion. The jump is held as an offset, the law sees the position
-without it, and the offset is brought back to zero at CATCH_UP m/s: the vehicle moves to where the estimate now puts
-it as it would along a slow path, not with the thrust a metre of sudden error asks for. Pure: no I/O, no clock.
+without it, and the offset is brought back to zero as along a slow path: at CATCH_UP m/s, speeding up and slowing
+down at CATCH_ACCEL m/s^2 (a step in the pace is a step in the velocity the law sees, and a kick of thrust), so the
+vehicle moves to where the estimate now puts it without the thrust a metre of sudden error asks for. Pure: no I/O,
+no clock.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 JUMP_MIN = 0.25           # m: no smaller step is a jump
 JUMP_SIGMAS = 8.0         # ... nor one within this many standard deviations of the estimate's own scatter
 CATCH_UP = 0.1            # m/s: the pace a jump is taken in at (half the default lead-in's speed)
+CATCH_ACCEL = 0.05        # m/s^2: how fast that pace is reached and left
 SCATTER_TIME = 5.0        # s: time constant of the learnt scatter
 SCATTER_START = 0.02      # m: the scatter assumed before any is learnt
 MAX_GAP = 2.0             # s: after a longer silence the position is taken as it is (nothing to carry forward)
@@ -30,9 +33,18 @@ class Jump:
 
     def describe(self) -> str:
         n, e, d = self.step
-        return (f"the position estimate jumped {np.linalg.norm(self.step):.2f} m (north {n:+.2f}, east {e:+.2f}, "
-                f"down {d:+.2f}) beyond its own motion: a fix after a dropout or a reset; taken in at "
-                f"{CATCH_UP:g} m/s over {np.linalg.norm(self.step) / CATCH_UP:.0f} s")
+        size = float(np.linalg.norm(self.step))
+        return (f"the position estimate jumped {size:.2f} m (north {n:+.2f}, east {e:+.2f}, down {d:+.2f}) beyond "
+                f"its own motion: a fix after a dropout or a reset; taken in at {CATCH_UP:g} m/s over "
+                f"{catch_up_time(size):.0f} s")
+
+
+def catch_up_time(distance: float) -> float:
+    """s to take in `distance` m: CATCH_UP m/s, reached and left at CATCH_ACCEL (a triangle when too short)."""
+    ramp = CATCH_UP / CATCH_ACCEL
+    if distance >= CATCH_UP * ramp:
+        return distance / CATCH_UP + ramp
+    return 2.0 * np.sqrt(distance / CATCH_ACCEL)
 
 
 class EstimateJumps:
@@ -43,6 +55,7 @@ class EstimateJumps:
         self.offset = np.zeros(3)
         self.jumps: list[Jump] = []
         self._scatter = SCATTER_START ** 2
+        self._pace = 0.0                      # m/s the offset is being taken in at
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None   # (t, position seen, NED velocity)
 
     def steady(self, t: float, position: np.ndarray, v_ned: np.ndarray) -> np.ndarray:
@@ -58,8 +71,11 @@ class EstimateJumps:
             else:
                 self._scatter += min(dt / SCATTER_TIME, 1.0) * (size ** 2 / 3.0 - self._scatter)
             held = float(np.linalg.norm(self.offset))
-            if held > 0.0:
-                self.offset *= max(held - CATCH_UP * dt, 0.0) / held
+            if held > 0.0:     # speed up, cruise, or brake so as to stop where the offset ends
+                self._pace = min(self._pace + CATCH_ACCEL * dt, CATCH_UP, np.sqrt(2.0 * CATCH_ACCEL * held))
+                self.offset *= max(held - self._pace * dt, 0.0) / held
+            else:
+                self._pace = 0.0
         seen = position - self.offset
         self._last = (t, seen, np.asarray(v_ned, dtype=float))
         return seen
