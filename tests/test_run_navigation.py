@@ -49,3 +49,17 @@ def test_on_the_ideal_navigation_nothing_is_claimed_about_a_truth(tmp_path):
     assert code == 0, output
     assert "rms_position_error_truth_m" not in ran and "rms_position_error_truth_m" not in analyzed
     assert "against the truth" not in output
+
+
+def test_without_a_position_source_the_run_refuses_in_one_line_and_touches_nothing(tmp_path):
+    """`--navigation none`, as most BlueROV2s: attitude and depth only, never a LOCAL_POSITION_NED."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text(MISSION.replace("NAVIGATION", "ideal"))
+    with RunnerProcess(str(mission), "--navigation", "none", "--position-timeout", "5", "--speedup", "5") as run:
+        code = run.wait()
+    assert code == 1, run.output
+    assert "no LOCAL_POSITION_NED from the vehicle after 5 s: the vehicle's estimator has no position source" \
+        in run.output
+    assert "armed in" not in run.output and "set to RCIN" not in run.output
+    with RunnerProcess("--target", "udp:127.0.0.1:9", str(mission), "--navigation", "ugps") as run:
+        assert run.wait() == 2 and "--navigation applies to the built-in vehicle only" in run.output

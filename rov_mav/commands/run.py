@@ -185,6 +185,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "CAP_SYS_NICE and CAP_IPC_LOCK) and flies on at normal priority")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
+    p.add_argument("--navigation", type=_navigation, metavar="NAME|FILE",
+                   help="built-in vehicle only: how it knows where it is, as `rov-mav sim-bridge --navigation` "
+                        "(ideal, none, dvl, ugps, dvl+ugps, or a YAML file with a navigation: block; replaces the "
+                        "mission's environment: navigation; default: that, else ideal)")
     p.add_argument("--vehicle-faults", type=_vehicle_faults, metavar="SPEC|FILE",
                    help="built-in vehicle only: make it fail on purpose, in vehicle s since it started (as "
                         "`rov-mav sim-bridge --vehicle-faults`; replaces the mission's environment: vehicle_faults): "
@@ -213,7 +217,16 @@ def _vehicle_faults(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=None):
+def _navigation(text: str):
+    from rov_mav.model.navigation import NavigationError, load_navigation
+
+    try:
+        return load_navigation(text)
+    except NavigationError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=None, navigation=None):
     """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with
     the loop), its home at the mission's origin when it has one, loading while this process gets ready; returns
     (vehicle, connection string for it). Its clock starts with `_start_vehicle`."""
@@ -224,7 +237,8 @@ def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=N
     origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
     vehicle = VehicleProcess(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
                                           environment=mission.environment, start_depth=float(mission.start_pose[2]),
-                                          origin=origin, signing_key=key, vehicle_faults=vehicle_faults))
+                                          origin=origin, signing_key=key, vehicle_faults=vehicle_faults,
+                                          navigation=navigation))
     vehicle.launch()
     return vehicle, f"udpout:127.0.0.1:{port}"
 
@@ -295,10 +309,10 @@ def main(args: argparse.Namespace) -> int:
     settings = None if guided else controller_settings(args)
     kind = GUIDED_KIND if guided else settings.kind
     model = load_vehicle(args.vehicle)
-    if args.target is not None and args.vehicle_faults is not None:
-        print("rov-mav run: error: --vehicle-faults applies to the built-in vehicle only (no --target)",
-              file=sys.stderr)
-        return 2
+    for option, value in (("--vehicle-faults", args.vehicle_faults), ("--navigation", args.navigation)):
+        if args.target is not None and value is not None:
+            print(f"rov-mav run: error: {option} applies to the built-in vehicle only (no --target)", file=sys.stderr)
+            return 2
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
         return 2
@@ -330,7 +344,7 @@ def main(args: argparse.Namespace) -> int:
             # The built-in vehicle's clock runs from its start, under the mission's disturbance: what is slow to
             # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick), the
             # vehicle's own process loading meanwhile.
-            bridge, target = _launch_vehicle(mission, args.speedup, key, args.vehicle_faults)
+            bridge, target = _launch_vehicle(mission, args.speedup, key, args.vehicle_faults, args.navigation)
             prepare_compute()
             _start_vehicle(bridge, target, args.speedup)
         session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
