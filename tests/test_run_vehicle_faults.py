@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 from run_helpers import (
+    SPEEDUP,
     armed,
     assert_left_safe,
     bridge_with_checker,
@@ -31,18 +32,18 @@ def _times(output: str, pattern: str) -> list[float]:
     return [float(m.group(1)) for m in re.finditer(r"\[\s*(-?[0-9.]+)\] " + pattern, output)]
 
 
-def test_a_dead_thruster_is_named_within_2_s_and_the_run_flies_on_around_it(tmp_path):
+def _flies_on_after(tmp_path, fault: str, marker: str, speedup: float, *run_args: str,
+                    flown: float = 10.0) -> tuple[str, str]:
+    """A run against a bridge process with vehicle fault `fault` (at FAULT_AT): the run's line containing `marker`,
+    then `flown` s of vehicle time still flying, SIGTERM, the vehicle left safe; (that line, the run's output)."""
     mission = short_mission(tmp_path, goto_x=LONG)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults",
-                                               f"thruster=3:dead@{FAULT_AT:g}s", speedup=5.0)
-    with runner_against(bridge, mission) as run, bridge:
-        gcs = checker(checker_port, speedup=5.0)
+                                               f"{fault}@{FAULT_AT:g}s", speedup=speedup)
+    with runner_against(bridge, mission, *run_args) as run, bridge:
+        gcs = checker(checker_port, speedup=speedup)
         try:
-            line = run.wait_for("thruster 3 ", timeout=120.0)
-            seen = float(re.search(r"vehicle t=([0-9.]+) s", line).group(1))
-            assert FAULT_AT < seen <= FAULT_AT + 3.0, line     # the target is 2 s; the table measures it
-            assert "left out" in line or "allocated at" in line, line
-            time.sleep(10.0 / 5.0)                              # 10 s of vehicle time flown on seven thrusters
+            line = run.wait_for(marker, timeout=120.0)
+            time.sleep(flown / speedup)
             assert run.proc.poll() is None, run.output          # still flying
             run.signal(15)
             assert run.wait() == 143, run.output
@@ -50,6 +51,14 @@ def test_a_dead_thruster_is_named_within_2_s_and_the_run_flies_on_around_it(tmp_
         finally:
             gcs.close()
     assert "limit crossed" not in run.output
+    return line, run.output
+
+
+def test_a_dead_thruster_is_named_within_2_s_and_the_run_flies_on_around_it(tmp_path):
+    line, _ = _flies_on_after(tmp_path, "thruster=3:dead", "thruster 3 ", 5.0)
+    seen = float(re.search(r"vehicle t=([0-9.]+) s", line).group(1))
+    assert FAULT_AT < seen <= FAULT_AT + 3.0, line             # the target is 2 s; the table measures it
+    assert "left out" in line or "allocated at" in line, line
 
 
 def test_a_reboot_is_named_only_neutral_reaches_the_thrusters_after_it_and_the_run_restores_what_it_changed(
@@ -161,24 +170,12 @@ def test_a_reset_that_moves_the_estimate_a_metre_is_taken_in_at_a_flyable_pace_w
     """navigation-reset=0.8/0.6@T: the estimate jumps 1 m; the run says so and brings it in at 0.1 m/s, its thrust
     within a fifth of the path's own before it (taken in at once, 12.9 N against the path's 8.4: measured), and
     flies on."""
-    mission = short_mission(tmp_path, goto_x=LONG)
     log = tmp_path / "log"
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults",
-                                               f"navigation-reset=0.8/0.6@{FAULT_AT:g}s")
-    with runner_against(bridge, mission, "--log", str(log)) as run, bridge:
-        gcs = checker(checker_port)
-        try:
-            line = run.wait_for("the position estimate jumped", timeout=120.0)
-            time.sleep(15.0 / 10.0)                             # 15 s of vehicle time after it
-            assert run.proc.poll() is None, run.output          # still flying
-            run.signal(15)
-            assert run.wait() == 143, run.output
-            assert_left_safe(gcs)
-        finally:
-            gcs.close()
+    line, output = _flies_on_after(tmp_path, "navigation-reset=0.8/0.6", "the position estimate jumped", SPEEDUP,
+                                   "--log", str(log), flown=15.0)
     assert "jumped 1.00 m" in line and "taken in at 0.1 m/s" in line, line
     ticks = np.genfromtxt(log / "ticks.csv", delimiter=",", names=True)
-    jump = _times(run.output, "WARNING: the position estimate jumped")[0]
+    jump = _times(output, "WARNING: the position estimate jumped")[0]
     force = np.hypot(ticks["tau_X"], ticks["tau_Y"])
     before = force[(ticks["t"] > jump - 20.0) & (ticks["t"] < jump)].max()
     after = force[(ticks["t"] >= jump) & (ticks["t"] < jump + 12.0)].max()
