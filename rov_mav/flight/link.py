@@ -96,6 +96,7 @@ class Session:
         self.target = describe
         self.vehicle: VehicleId | None = None
         self.heartbeat = None                 # the vehicle's last HEARTBEAT
+        self.origins: dict[str, object] = {}  # its last GPS_GLOBAL_ORIGIN and HOME_POSITION, whoever read them
         self.override: list[int] | None = None   # PWMs held (resent at `override_rate` vehicle Hz)
         self.override_rate = 50.0
         self.motor_test: list[int] | None = None   # motor-test PWMs held (resent at `override_rate` vehicle Hz)
@@ -504,6 +505,8 @@ class Session:
                 self.clock.observe(boot_ms / 1000.0)
             if kind == "HEARTBEAT":
                 self.heartbeat = msg
+            elif kind in ("GPS_GLOBAL_ORIGIN", "HOME_POSITION"):
+                self.origins[kind] = msg
             elif kind == "TIMESYNC":
                 self._timesync_answer(msg)
             elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:

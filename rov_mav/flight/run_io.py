@@ -82,6 +82,9 @@ class RunIO:
             self.rc_seen.append([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)])
         if self.watcher is not None and self.flying_since is not None and not self.stopping:
             self.watcher(msg, kind)
+        if self.truth.origin is None:          # sent once (ArduSub: when the origin is set), maybe while a wait read
+            for origin in self.session.origins.values():
+                self.truth.update(origin, 0.0)
         self.truth.update(msg, self.session.clock.now())
         return self.decoder.update(msg)
 
