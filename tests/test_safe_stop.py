@@ -58,6 +58,7 @@ class FakeSession:
         self.clock = FakeClock(self)
         self.vehicle = SimpleNamespace(sysid=1, compid=1)
         self.heartbeat = SimpleNamespace(custom_mode=mode)
+        self.origins: dict = {}
         self.armed = True
         self.sysid = 200
         self.motor_test: list[int] | None = None
