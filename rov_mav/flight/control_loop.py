@@ -23,7 +23,7 @@ from rov_mav.flight.run_options import Abort, HandOver, LinkLost, VehicleFailsaf
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.thruster_watch import ThrusterWatch
 from rov_mav.flight.tick import TickRecord
-from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, failsafe_text, position_lost
+from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, failsafe_text, position_lost, rebooted
 from rov_mav.flight.vehicle_state import State
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
@@ -202,8 +202,8 @@ class FlightLoop:
         reboots = self.io.session.clock.reboots
         if len(reboots) > self._reboots or (kind == "HEARTBEAT" and msg.system_status == mavlink.MAV_STATE_BOOT):
             before, after = reboots[-1] if len(reboots) > self._reboots else (now, 0.0)
-            raise Abort(f"the vehicle rebooted (its clock went back from {before:.1f} s to {after:.1f} s): it is "
-                        "disarmed, and its outputs are as stored in its parameters", EXIT_REBOOT)
+            raise Abort(f"{rebooted(before, after)}: it is disarmed, and its outputs are as stored in its parameters",
+                        EXIT_REBOOT)
         if kind == "STATUSTEXT" and (fault := failsafe_text(msg.text)) is not None and fault.stop:
             raise VehicleFailsafe(f"the vehicle's failsafe: {fault.name} (\"{msg.text}\")", now, EXIT_FAILSAFE)
         if kind == "EKF_STATUS_REPORT":

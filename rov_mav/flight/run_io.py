@@ -12,8 +12,8 @@ import numpy as np
 
 from rov_mav.flight.link import CHANNELS, NEUTRAL, Session, mavlink
 from rov_mav.flight.run_options import Abort, RunOptions
-from rov_mav.flight.vehicle_changes import VehicleChanges
 from rov_mav.flight.truth import Truth
+from rov_mav.flight.vehicle_changes import VehicleChanges
 from rov_mav.flight.vehicle_state import State, StateDecoder
 
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW

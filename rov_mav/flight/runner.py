@@ -32,7 +32,7 @@ from rov_mav.flight.run_io import RunIO
 from rov_mav.flight.run_options import MOTOR_TEST, Abort, HandOver, RunOptions, RunResult
 from rov_mav.flight.safe_stop import SafeStop
 from rov_mav.flight.vehicle_changes import VehicleChanges
-from rov_mav.flight.vehicle_events import EXIT_REBOOT
+from rov_mav.flight.vehicle_events import EXIT_REBOOT, rebooted
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
 from rov_mav.mission.missions import Mission
@@ -117,8 +117,7 @@ class Runner:
             report = stop.stop(reason, self._notes())
             if len(self.session.clock.reboots) > reboots and code != EXIT_REBOOT:   # seen only while stopping
                 before, after = self.session.clock.reboots[-1]
-                code, reason = EXIT_REBOOT, (f"the vehicle rebooted (its clock went back from {before:.1f} s to "
-                                             f"{after:.1f} s), first seen as: {reason}")
+                code, reason = EXIT_REBOOT, f"{rebooted(before, after)}, first seen as: {reason}"
                 self.io.say(reason, "warning")
             if stop.unconfirmed and code == 0:     # complete, but the vehicle may not be left as it should
                 code = 1

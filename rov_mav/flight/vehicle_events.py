@@ -40,6 +40,11 @@ _TEXTS = (
 )
 
 
+def rebooted(before: float, after: float) -> str:
+    """How a run names a reboot: the vehicle's clock went back from `before` to `after` s."""
+    return f"the vehicle rebooted (its clock went back from {before:.1f} s to {after:.1f} s)"
+
+
 def failsafe_text(text: str) -> VehicleFault | None:
     """The failsafe a STATUSTEXT announces, or None."""
     for pattern, fault in _TEXTS:
