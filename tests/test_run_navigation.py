@@ -63,3 +63,33 @@ def test_without_a_position_source_the_run_refuses_in_one_line_and_touches_nothi
     assert "armed in" not in run.output and "set to RCIN" not in run.output
     with RunnerProcess("--target", "udp:127.0.0.1:9", str(mission), "--navigation", "ugps") as run:
         assert run.wait() == 2 and "--navigation applies to the built-in vehicle only" in run.output
+
+
+def test_on_its_own_estimate_the_run_is_nearer_the_truth_than_the_vehicle_estimate(tmp_path):
+    """`--estimator model` on acoustic fixes: the run's own model-aided estimate (`flight.model_estimator`), fed by
+    the UGPS driver's GPS_INPUT on the link, is nearer the truth than the vehicle's EKF, over the same run; the run
+    flies on it and completes."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text(MISSION.replace("NAVIGATION", "ugps").replace(
+        "  - {goto: [3.0, 0.0, 1.0], speed: 0.2}",
+        "  - {goto: [4.0, 0.0, 1.0], speed: 0.25}\n  - {goto: [4.0, 3.0, 1.0], speed: 0.25}\n"
+        "  - {goto: [0.0, 3.0, 1.0], speed: 0.25}\n  - {goto: [0.0, 0.0, 1.0], speed: 0.25}"))
+    metrics, log = tmp_path / "metrics.json", tmp_path / "log"
+    with RunnerProcess(str(mission), "--speedup", "5", "--estimator", "model", "--metrics", str(metrics), "--log",
+                       str(log)) as run:
+        code = run.wait()
+    assert code == 0, run.output
+    ran = json.loads(metrics.read_text())
+    ours, vehicle = ran["rms_estimate_error_truth_m"], ran["rms_vehicle_estimate_error_truth_m"]
+    assert ours < vehicle, (ours, vehicle)
+    assert ran["rms_position_error_truth_m"] < vehicle
+    assert "flying on the run's own estimate from here: an acoustic fix (GPS_INPUT) started it" in run.output
+
+
+def test_ardusubs_guided_cannot_fly_on_the_runs_own_estimate(tmp_path):
+    mission = tmp_path / "m.yaml"
+    mission.write_text(MISSION.replace("NAVIGATION", "ugps"))
+    with RunnerProcess(str(mission), "--controller", "ardusub-guided", "--estimator", "model") as run:
+        assert run.wait() == 2
+    assert "--estimator model is the law's; --controller ardusub-guided flies on ArduSub's own estimate" in run.output
+    assert len(run.output.strip().splitlines()) == 1

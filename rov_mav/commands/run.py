@@ -179,6 +179,12 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "1 N pattern of thrusts with no net wrench, 2 s period, keeps each one's commands moving; a "
                         "dead, stuck, weak or reversed thruster is named, the allocation re-solved around it, and the "
                         "run stops, exit 6, if what is left cannot fly the mission), or not (off)")
+    p.add_argument("--estimator", choices=["vehicle", "model"], default="vehicle",
+                   help="the position and velocity the law flies on: the vehicle's own estimate (vehicle, default: "
+                        "ArduSub's EKF, through LOCAL_POSITION_NED), or the run's own (model): a Kalman filter that "
+                        "predicts with the vehicle model under the thrust the run commands and fuses the navigation "
+                        "sources' messages on the link (GPS_INPUT fixes, VISION_POSITION_DELTA DVL velocities) at "
+                        "their own time, the vehicle's attitude and depth, and its position while no source speaks")
     p.add_argument("--realtime", action="store_true",
                    help="ask the operating system for real-time scheduling (SCHED_FIFO) and locked memory, so that a "
                         "busy computer does not stall the loop; says in one line what was refused (it needs root or "
@@ -292,7 +298,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.guided import GuidedStream
     from rov_mav.flight.link import LinkError, Session
     from rov_mav.flight.runlog import RunLog
-    from rov_mav.flight.run_options import THRUSTERS, Limits, RunOptions
+    from rov_mav.flight.run_options import THRUSTERS, VEHICLE, Limits, RunOptions
     from rov_mav.flight.runner import Runner, warm_up
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics, truth_metrics
@@ -315,6 +321,10 @@ def main(args: argparse.Namespace) -> int:
             return 2
     if args.target is not None and args.speedup != 1.0:
         print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
+        return 2
+    if guided and args.estimator != VEHICLE:
+        print(f"rov-mav run: error: --estimator {args.estimator} is the law's; --controller {GUIDED_KIND} flies on "
+              "ArduSub's own estimate", file=sys.stderr)
         return 2
     if guided and args.output != THRUSTERS:
         print(f"rov-mav run: error: --output {args.output} carries a law's PWMs; --controller {GUIDED_KIND} flies on "
@@ -370,7 +380,7 @@ def main(args: argparse.Namespace) -> int:
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
                          velocity_blend=args.velocity_blend, output=args.output, predict=args.predict == "on",
-                         thruster_check=args.thruster_check == "on",
+                         thruster_check=args.thruster_check == "on", estimator=args.estimator,
                          limits=limits)
     true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
@@ -399,7 +409,8 @@ def main(args: argparse.Namespace) -> int:
     flown = result.t >= 0.0   # the mission proper, without the lead-in to its start
     metrics = run_metrics(mission.name, kind, result.t[flown], result.eta[flown], result.eta_d[flown],
                           result.tau[flown], result.tau_hat[flown], true_disturbance, result.completed)
-    metrics.update(truth_metrics(result.truth[flown], result.eta_d[flown]))
+    metrics.update(truth_metrics(result.truth[flown], result.eta_d[flown], result.eta[flown],
+                                 result.reported[flown]))
     metrics["loop"] = loop
     if args.metrics:
         path = Path(args.metrics)
@@ -416,6 +427,11 @@ def main(args: argparse.Namespace) -> int:
               + (f"; against the truth (SIM_STATE) RMS {metrics['rms_position_error_truth_m'] * 100:.2f} cm, max "
                  f"{metrics['max_position_error_truth_m'] * 100:.2f} cm" if "rms_position_error_truth_m" in metrics
                  else ""))
+        if "rms_estimate_error_truth_m" in metrics:
+            print(f"  the position flown on ({args.estimator}'s estimate) is {metrics['rms_estimate_error_truth_m'] * 100:.2f}"
+                  f" cm RMS from the truth"
+                  + (f"; the vehicle's own estimate {metrics['rms_vehicle_estimate_error_truth_m'] * 100:.2f} cm"
+                     if args.estimator != "vehicle" else ""))
     print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
           f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters moved "
           f"{loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)", flush=True)

@@ -17,9 +17,10 @@ from rov_mav.flight.actuation import Actuation
 from rov_mav.flight.history import History
 from rov_mav.flight.link import CHANNELS, mavlink, mode_name
 from rov_mav.flight.outputs import Guided, Passthrough
+from rov_mav.flight.own_navigation import OwnNavigation
 from rov_mav.flight.prediction import MAX_HORIZON, StatePredictor
 from rov_mav.flight.run_io import RunIO
-from rov_mav.flight.run_options import Abort, HandOver, LinkLost, VehicleFailsafe
+from rov_mav.flight.run_options import MODEL, Abort, HandOver, LinkLost, VehicleFailsafe
 from rov_mav.flight.runlog import mission_start_text
 from rov_mav.flight.thruster_watch import ThrusterWatch
 from rov_mav.flight.tick import TickRecord
@@ -79,8 +80,10 @@ class FlightLoop:
         self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self._position_lost_at: float | None = None   # vehicle s since when it has shown none
-        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3)
+        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3)
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
+        if controller is not None and io.options.estimator == MODEL:
+            io.own = OwnNavigation(controller.model)     # started from the first state the loop reads
         io.mission_time = self.mission_time
         io.watcher = self._watch
         io.on_neutral.append(self._neutral_sent)
@@ -276,12 +279,13 @@ class FlightLoop:
         truth = io.truth.position if io.truth.t is not None and abs(io.truth.t - state.t) <= TRUTH_AGE else None
         if t >= 0 and fresh:
             self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat,
-                            truth=truth if truth is not None else np.full(3, np.nan))
+                            truth=truth if truth is not None else np.full(3, np.nan),
+                            reported=state.reported if state.reported is not None else state.eta[:3])
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
                             progress=self.mission.progress(t), telemetry_age=age, latency=latency,
                             control_rate=len(self._ticks), battery_voltage=self.actuation.voltage, horizon=horizon,
-                            true_disturbance=self.true_disturbance, truth=truth)
+                            true_disturbance=self.true_disturbance, truth=truth, reported=state.reported)
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration
@@ -305,6 +309,8 @@ class FlightLoop:
         """The wrench just sent (zero for neutral), acting from vehicle time t_act: held for the next stall and
         known to the prediction."""
         self._held_tau = wrench
+        if self.io.own is not None:
+            self.io.own.commanded(t_act, wrench)
         if self.predictor is not None:
             self.predictor.commanded(t_act, wrench)
 

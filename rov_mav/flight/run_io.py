@@ -11,7 +11,8 @@ from collections.abc import Callable
 import numpy as np
 
 from rov_mav.flight.link import CHANNELS, NEUTRAL, Session, mavlink
-from rov_mav.flight.run_options import Abort, RunOptions
+from rov_mav.flight.own_navigation import OwnNavigation
+from rov_mav.flight.run_options import MODEL, Abort, RunOptions
 from rov_mav.flight.truth import Truth
 from rov_mav.flight.vehicle_changes import VehicleChanges
 from rov_mav.flight.vehicle_state import State, StateDecoder
@@ -25,9 +26,13 @@ class RunIO:
         self.options = options
         self.changes = changes
         self.sinks = sinks
-        self.decoder = StateDecoder(options.velocity_blend, steady=True)
+        self.decoder = StateDecoder(options.velocity_blend, steady=True)   # jumps taken in at a flyable pace
+        self.own: OwnNavigation | None = None     # the run's own estimator (--estimator model), while flying
+        if options.estimator == MODEL:
+            session.taps.append(self._navigation_source)
         self.truth = Truth()                      # where a simulator says the vehicle really is (SIM_STATE)
         self._jumps_said = 0
+        self._own_said = False
         self.last_state: State | None = None
         self.signal_name: str | None = None
         self.stopping = False
@@ -61,6 +66,11 @@ class RunIO:
         if received is None:
             return None
         self.last_state = self.decoder.state(received)
+        if self.own is not None:
+            self.last_state = self.own.state(self.last_state)
+            if self.own.started_by is not None and not self._own_said:
+                self._own_said = True
+                self.say(f"flying on the run's own estimate from here: {self.own.started_by} started it")
         jumps = self.decoder.jumps.jumps
         while self._jumps_said < len(jumps):
             self.say(jumps[self._jumps_said].describe(), "warning")
@@ -87,6 +97,11 @@ class RunIO:
                 self.truth.update(origin, 0.0)
         self.truth.update(msg, self.session.clock.now())
         return self.decoder.update(msg)
+
+    def _navigation_source(self, msg, outgoing: bool) -> None:
+        """Every message heard (whoever sent it: the navigation sources speak from their own ids) to our estimator."""
+        if self.own is not None and not outgoing:
+            self.own.source(msg, self.session.clock.now(), self.truth.origin)
 
     def send_neutral(self) -> None:
         """Neutral on all eight channels (and in the motor test, when one runs), no waiting."""

@@ -10,6 +10,7 @@ from rov_mav.mission.metrics import finite_percentile, loop_figures, pwm_activit
 
 HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
+VEHICLE, MODEL = "vehicle", "model"                 # whose position estimate the law flies on (`RunOptions.estimator`)
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class RunOptions:
     output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
     predict: bool = True               # the law acts on the state predicted to when its command acts
     thruster_check: bool = True        # watch the thrusters for doing what they are told (`flight.thruster_watch`)
+    estimator: str = VEHICLE           # VEHICLE: fly on the vehicle's estimate; MODEL: on our own (`own_navigation`)
     limits: Limits = Limits()
 
     @property
@@ -82,6 +84,7 @@ class RunResult:
     eta: np.ndarray                    # (N, 6)
     eta_d: np.ndarray                  # (N, 6)
     truth: np.ndarray                  # (N, 3) true NED position where a simulator says it (SIM_STATE), else NaN
+    reported: np.ndarray               # (N, 3) the vehicle's own position estimate (eta's, unless --estimator model)
     tau: np.ndarray                    # (N, 6)
     tau_hat: np.ndarray                # (N, 6)
     latency_ms: np.ndarray             # (M,) telemetry in -> command out (NaN for a tick between samples)

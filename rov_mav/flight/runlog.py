@@ -32,6 +32,7 @@ REFERENCE = tuple(f"{d}{suffix}" for suffix in ("_d", "_dot_d", "_ddot_d") for d
 THRUSTS = tuple(f"thrust_{i}" for i in range(1, 9))
 PWMS = tuple(f"pwm_{i}" for i in range(1, 9))
 TRUTH = ("x_true", "y_true", "z_true")     # where a simulator says the vehicle really is (empty on a real one)
+REPORTED = ("x_vehicle", "y_vehicle", "z_vehicle")   # the vehicle's own estimate (x, y, z: the one the law flew on)
 
 
 def per_wrench(name: str) -> tuple[str, ...]:
@@ -46,7 +47,7 @@ def per_dof(name: str) -> tuple[str, ...]:
 
 COLUMNS = ("t", "vehicle_time", "progress", *DOF, *BODY, *REFERENCE, *per_wrench("tau"), *per_wrench("tau_hat"),
            *per_dof("s"), *per_dof("gamma"), *THRUSTS, *PWMS, "telemetry_age", "latency", "control_rate",
-           "battery_voltage", "horizon", *TRUTH)
+           "battery_voltage", "horizon", *TRUTH, *REPORTED)
 RUN_INFO = "run.json"
 _STOP = object()
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
@@ -69,7 +70,8 @@ def tick_row(r: TickRecord) -> list[str]:
     times = [repr(float(r.t)), repr(float(r.vehicle_time))]
     values = [r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
               *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage, r.horizon,
-              *(r.truth if r.truth is not None else (np.nan,) * 3)]
+              *(r.truth if r.truth is not None else (np.nan,) * 3),
+              *(r.reported if r.reported is not None else r.eta[:3])]
     return times + [f"{float(v):.9g}" for v in values]
 
 

@@ -30,3 +30,4 @@ class TickRecord:
     horizon: float = 0.0            # s the state was predicted forward (measurement to when the command acts)
     true_disturbance: np.ndarray | None = None   # (6,) when known (simulation)
     truth: np.ndarray | None = None  # (3,) true NED position when a simulator says it (SIM_STATE), else None
+    reported: np.ndarray | None = None   # (3,) the vehicle's own position estimate (eta's unless --estimator model)

@@ -17,6 +17,13 @@ import numpy as np
 EARTH_RADIUS = 6378137.0     # m: ArduPilot's flat-earth conversion (`Location::get_distance_NE`)
 
 
+def north_east(lat: float, lon: float, origin: tuple[float, float, float]) -> tuple[float, float]:
+    """m north and east of the origin (lat deg, lon deg, alt m) of a point at lat, lon deg, on the flat earth."""
+    lat0, lon0, _ = origin
+    return (math.radians(lat - lat0) * EARTH_RADIUS,
+            math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)))
+
+
 class Truth:
     """`update(msg, t)` with any message; `position` the latest true NED position (None until an origin and a
     SIM_STATE have both arrived), `t` the vehicle time it arrived at."""
@@ -37,10 +44,7 @@ class Truth:
         elif kind == "SIM_STATE" and self.origin is not None:
             lat = msg.lat_int * 1e-7 if msg.lat_int else msg.lat
             lon = msg.lon_int * 1e-7 if msg.lon_int else msg.lon
-            lat0, lon0, alt0 = self.origin
-            self.position = np.array([math.radians(lat - lat0) * EARTH_RADIUS,
-                                      math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)),
-                                      alt0 - msg.alt])
+            self.position = np.array([*north_east(lat, lon, self.origin), self.origin[2] - msg.alt])
             self.t = t
             return True
         return False

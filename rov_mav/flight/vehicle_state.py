@@ -34,6 +34,7 @@ class State:
     eta: np.ndarray       # (6,) NED position, Euler angles
     nu: np.ndarray        # (6,) body velocity
     received: float       # wall time (perf_counter) the completing message arrived
+    reported: np.ndarray | None = None   # (3,) the vehicle's own position estimate at t, whatever eta's came from
 
 
 class StateDecoder:
@@ -109,9 +110,10 @@ class StateDecoder:
         # the older half brought forward to the sample's time by its own rates (by half a period at most)
         eta[:3] += reported_v * (t - t_position)
         eta[3:] += euler_rate_matrix(eta) @ rates * (t - t_attitude)
+        reported = eta[:3].copy()
         if self.jumps is not None:
             eta[:3] = self.jumps.steady(t, eta[:3], reported_v)
         v_ned = self.blend.update(t, eta[:3], reported_v)
         v_body = rotation(eta).T @ v_ned
         nu = np.array([*v_body, a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)
-        return State(t, eta, nu, received)
+        return State(t, eta, nu, received, reported)

@@ -7,15 +7,21 @@ import numpy as np
 from rov_mav.control.law import tracking_error
 
 
-def truth_metrics(truth: np.ndarray, eta_d: np.ndarray) -> dict:
+def truth_metrics(truth: np.ndarray, eta_d: np.ndarray, estimate: np.ndarray | None = None,
+                  reported: np.ndarray | None = None) -> dict:
     """RMS and max position error against the truth (a simulator's SIM_STATE), over the samples that have it; {} when
-    none does (a real vehicle). truth (N, 3), eta_d (N, 6)."""
+    none does (a real vehicle). With `estimate` (the position the law flew on) and `reported` (the vehicle's own
+    estimate), each estimate's own RMS error against the truth too. truth, estimate, reported (N, 3), eta_d (N, 6)."""
     known = np.all(np.isfinite(truth), axis=1)
     if not known.any():
         return {}
     error = np.linalg.norm(truth[known] - eta_d[known, :3], axis=1)
-    return {"rms_position_error_truth_m": _rms(error), "max_position_error_truth_m": float(error.max()),
-            "truth_samples": int(known.sum())}
+    out = {"rms_position_error_truth_m": _rms(error), "max_position_error_truth_m": float(error.max()),
+           "truth_samples": int(known.sum())}
+    for name, position in (("estimate", estimate), ("vehicle_estimate", reported)):
+        if position is not None:
+            out[f"rms_{name}_error_truth_m"] = _rms(np.linalg.norm(truth[known] - position[known, :3], axis=1))
+    return out
 
 
 def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from rov_mav.config import ConfigError
 from rov_mav.flight.link import CHANNELS, mavlink
-from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS, TRUTH, per_dof, per_wrench
+from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, REPORTED, THRUSTS, TRUTH, per_dof, per_wrench
 from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, truth_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
@@ -275,7 +275,9 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                                  {name: value[flown] for name, value in internals.items()},
                                  completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
                                  true_disturbance=truth))
-        metrics.update(truth_metrics(column_block(ticks, TRUTH)[flown], reference[flown, :6]))
+        reported = column_block(ticks, REPORTED)[flown] if REPORTED[0] in ticks else None   # older logs lack it
+        metrics.update(truth_metrics(column_block(ticks, TRUTH)[flown], reference[flown, :6], eta[flown, :3],
+                                     reported))
         latency = ticks["latency"] * 1e3 if "latency" in ticks else np.full(t.size, np.nan)
         metrics["loop"] = {**loop_figures(t, latency), "source": "ticks.csv",
                            "pwm_activity_us_per_s": pwm_activity(t, column_block(ticks, PWMS))}   # as the run's

@@ -1,0 +1,279 @@
+"""The run's own navigation (`run --estimator model`): a model-aided Kalman filter over what passes the vehicle's
+router anyway, for when the vehicle's estimate is what limits the error against the truth.
+
+ArduSub's EKF3 predicts with the IMU alone and knows nothing of the vehicle; between two acoustic fixes its position
+is the integral of a noisy acceleration, and every fix corrects it with a step. This filter predicts with the
+vehicle's dynamics instead (Eq. 2.7 through the compiled model, `kernel.state_derivative`: the controller's own
+model, so `identify`'s makes it better) under the wrench the run itself commands, each from the instant it acts, as
+AUV navigation does between fixes. Its state is z = [north, east, down, u, v, w, X_d, Y_d, Z_d, current north,
+current east]: the position, the body velocity, a slowly varying body force the model does not know (a tether's
+pull, buoyancy off by a weight, thrust the thrusters do not give: Eq. 3.2's tau_d, its force part) and the water
+current the damping acts through (kernel's relative velocity). The attitude and body rates are the vehicle's
+(ATTITUDE); the depth its Bar30 through the EKF (LOCAL_POSITION_NED z, which the EKF takes from the Bar30 with no lag
+worth modelling).
+
+Measurements, each fused at its own time of validity (the filter keeps the last HISTORY s of its steps with their
+inputs and measurements, goes back to that time, fuses, and steps forward again, fusing again what it had fused
+since: what EKF3's delayed horizon does, `NavEKF3_core::UpdateFilter`, without a horizon fixed to the largest
+delay):
+- an acoustic fix (GPS_INPUT with a fix: north/east from the EKF origin, its horiz_accuracy as the standard
+  deviation), valid UGPS_LATENCY before it arrives;
+- a DVL report (VISION_POSITION_DELTA: the body velocity over the report's interval), valid DVL_LATENCY before it
+  arrives;
+- until a source has given a measurement (the run may start in a dropout: the vehicle's estimate is then the best
+  there is, the unknown force not yet learnt) and where no source has spoken for SOURCE_SILENCE s (an ideal or a
+  GPS-aided vehicle, a driver that died), the vehicle's own horizontal position, so the filter never runs open-loop
+  for long; a source in a dropout still speaks (the UGPS driver sends GPS_INPUT without a fix), and the model
+  carries the position through it.
+Each innovation is gated at GATE standard deviations; after RESET_AFTER s of fixes refused in a row the position is
+reset to the next one, as EKF3 resets to its GPS (`NavEKF3_core::ResetPosition`): the filter had gone wrong, not
+the fixes. The first fix resets it too (the position before it was the vehicle's, and what was learnt from it).
+What the law flies on is the filter's output, as EKF3's output predictor gives it (`NavEKF3_core::calcOutputStates`,
+EK3_TAU_OUTPUT): carried forward by the same model, and moved towards the filter's estimate over OUTPUT_TIME, so a
+fix's correction (a few cm, 3.8 times a second) is not a step the law turns into thruster activity; a large one (a fix
+after a dropout, a reset: beyond JUMP_MIN) is taken in at CATCH_UP m/s, as `estimate_jumps` takes in the vehicle's.
+Pure: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rov_mav.flight.estimate_jumps import CATCH_UP, JUMP_MIN
+from rov_mav.flight.prediction import CommandHistory
+from rov_mav.model import kernel
+from rov_mav.model.navigation import Dvl, Ugps
+
+STILL_WATER = np.zeros(3)
+N = 11                    # north, east, down, u, v, w, X_d, Y_d, Z_d, current north, current east
+STEP = 0.02               # s: the longest prediction step
+HISTORY = 1.5             # s of steps kept to fuse a late measurement at its own time
+UGPS_LATENCY = Ugps().latency     # s from a fix to its arrival (the figures of `rov_mav.model.navigation`)
+DVL_LATENCY = Dvl().latency
+SOURCE_SILENCE = 30.0     # s without a navigation source's message before the vehicle's position is fused
+GATE = 5.0                # standard deviations: a larger innovation is refused (EKF3's default position gate)
+RESET_AFTER = 5.0         # s of refused fixes in a row before they are taken after all
+ACCEL_NOISE = 0.05        # m/s^2 per axis: what the model misses of the acceleration (process noise)
+POSITION_NOISE = 0.002    # m/sqrt(s): the position's own process noise (rounding of the steps)
+FORCE_WALK = 0.05         # N per sqrt(s): how fast the unknown force may change
+CURRENT_WALK = 0.001      # m/s per sqrt(s): how fast the water current may change
+FIX_FLOOR = 0.05          # m: the least standard deviation given to a fix
+DVL_NOISE = 0.02          # m/s per axis: a DVL report's standard deviation (noise and scale error)
+DEPTH_NOISE = 0.01        # m: the vehicle's depth
+VEHICLE_NOISE = 0.2       # m: the vehicle's horizontal position, when it is what is fused (as good as a fix)
+OUTPUT_TIME = 1.0         # s: the time constant the output takes the filter's corrections in over
+START_POSITION, START_VELOCITY, START_FORCE, START_CURRENT = 1.0, 0.05, 5.0, 0.03  # at the start (m, m/s, N, m/s)
+
+
+def _update(z: np.ndarray, P: np.ndarray, H: np.ndarray, y: np.ndarray, R: np.ndarray,
+            gate: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """The Kalman update with y = H z + noise(R) (Joseph form: P stays symmetric and positive); None if gated out."""
+    innovation = y - H @ z
+    S = H @ P @ H.T + R
+    S_inv = np.linalg.inv(S)
+    if gate and float(innovation @ S_inv @ innovation) > GATE ** 2 * len(y):
+        return None
+    K = P @ H.T @ S_inv
+    IKH = np.eye(len(z)) - K @ H
+    return z + K @ innovation, IKH @ P @ IKH.T + K @ R @ K.T
+
+
+@dataclass
+class _Step:
+    t: float              # s: the time this step ends at
+    h: float              # s: its length
+    attitude: np.ndarray  # (6,) roll, pitch, yaw, p, q, r over it
+    tau: np.ndarray       # (6,) the commanded wrench over it
+    z: np.ndarray         # (N,) the state at t, the measurements of its time fused
+    P: np.ndarray         # (N, N)
+    measurements: list = field(default_factory=list)   # (H, y, R) fused at t: fused again when an earlier one is
+
+
+class ModelEstimator:
+    """`commanded(t_act, wrench)` for every command; `advance(t, attitude)` with each state sample; `fix`, `dvl`,
+    `depth`, `vehicle_position` as they arrive; `position`, `velocity` the estimate at the last `advance`."""
+
+    def __init__(self, model_packed: np.ndarray):
+        self.model = np.ascontiguousarray(model_packed, dtype=float)
+        self.wrenches = CommandHistory(6)
+        self.steps: deque[_Step] = deque()
+        self.z = np.zeros(N)
+        self.out = np.zeros(6)               # what the law sees: the filter's position and velocity, smoothed
+        self.P = np.zeros((N, N))
+        self.t: float | None = None
+        self.last_source = -math.inf       # s: the last fix or DVL report fused or refused
+        self.refused_since: float | None = None   # s: the first of the fixes refused in a row
+        self.fused = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}
+        self.refused = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}
+        self._x = np.zeros(12)
+        self._dx = np.zeros(12)
+        self._tau = np.zeros(6)
+        self._current = np.zeros(3)
+
+    @property
+    def started(self) -> bool:
+        return self.t is not None
+
+    def start(self, t: float, eta: np.ndarray, nu: np.ndarray) -> None:
+        """Begin at vehicle time t from a known state (the vehicle's estimate when the run takes over)."""
+        self.t = t
+        self.z = np.concatenate([eta[:3], nu[:3], np.zeros(5)]).astype(float)
+        self.P = np.diag([START_POSITION ** 2] * 3 + [START_VELOCITY ** 2] * 3 + [START_FORCE ** 2] * 3
+                         + [START_CURRENT ** 2] * 2)
+        self.out = self.z[:6].copy()
+        self.steps.clear()
+        self.steps.append(_Step(t, 0.0, np.concatenate([eta[3:6], nu[3:6]]).astype(float), np.zeros(6),
+                                self.z.copy(), self.P.copy()))
+
+    def commanded(self, t_act: float, wrench: np.ndarray) -> None:
+        """A wrench that acts from vehicle time t_act (until the next one)."""
+        self.wrenches.add(t_act, np.asarray(wrench, dtype=float))
+
+    def advance(self, t: float, attitude: np.ndarray) -> None:
+        """Step to vehicle time t; attitude (6,) = roll, pitch, yaw, p, q, r as the vehicle reports them at t."""
+        attitude = np.asarray(attitude, dtype=float)
+        while self.t is not None and t - self.t > 1e-9:
+            h = min(STEP, t - self.t)
+            tau = self.wrenches.slot_means(self.t + h, h, h)[-1]
+            self.z, self.P = self._predict(self.z, self.P, attitude, tau, h)
+            self._output_step(attitude, tau, h)
+            self.t += h
+            self.steps.append(_Step(self.t, h, attitude, tau, self.z.copy(), self.P.copy()))
+        while len(self.steps) > 1 and self.steps[1].t < (self.t or 0.0) - HISTORY:
+            self.steps.popleft()
+
+    def _output_step(self, attitude: np.ndarray, tau: np.ndarray, h: float) -> None:
+        """The output carried by the model like the filter, and moved towards the filter's estimate: by h /
+        OUTPUT_TIME of the difference; when the position is more than JUMP_MIN behind (a fix after a dropout, a
+        reset), at CATCH_UP m/s at most: the vehicle is not sent lunging at it (`estimate_jumps`)."""
+        self.out = self.out + h * self._derivative(np.concatenate([self.out, self.z[6:]]), attitude, tau)[:6]
+        correction = min(h / OUTPUT_TIME, 1.0) * (self.z[:6] - self.out)
+        size = float(np.linalg.norm(correction[:3]))
+        if self.lag > JUMP_MIN and size > CATCH_UP * h:
+            correction[:3] *= CATCH_UP * h / size
+        self.out += correction
+
+    @property
+    def lag(self) -> float:
+        """m the output's position is behind the filter's: a correction still being taken in."""
+        return float(np.linalg.norm(self.z[:3] - self.out[:3]))
+
+    @property
+    def position(self) -> np.ndarray:
+        """The output's position (the filter's, its corrections taken in over OUTPUT_TIME)."""
+        return self.out[:3].copy()
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The output's body velocity u, v, w."""
+        return self.out[3:6].copy()
+
+    @property
+    def force(self) -> np.ndarray:
+        """The unknown body force X_d, Y_d, Z_d (N)."""
+        return self.z[6:9].copy()
+
+    def heard(self, t: float) -> None:
+        """A navigation source spoke at vehicle time t (with a fix or without: a dropout is not a silence, and the
+        vehicle's own position, dead-reckoned through it, is no better than the model's)."""
+        self.last_source = max(self.last_source, t)
+
+    def fix(self, arrival: float, north: float, east: float, std: float) -> bool:
+        """An acoustic fix that arrived at vehicle time `arrival`; True if fused."""
+        self.heard(arrival)
+        t = arrival - UGPS_LATENCY
+        H = np.zeros((2, N))
+        H[0, 0] = H[1, 1] = 1.0
+        R = np.eye(2) * max(std, FIX_FLOOR) ** 2
+        fused = self._fuse(t, H, np.array([north, east]), R, "fix", reset=self._reset_due(arrival))
+        if fused:
+            self.refused_since = None
+        elif self.refused_since is None:
+            self.refused_since = arrival
+        return fused
+
+    def dvl(self, arrival: float, velocity: np.ndarray) -> bool:
+        """A DVL report's body velocity that arrived at vehicle time `arrival`; True if fused."""
+        self.heard(arrival)
+        H = np.zeros((3, N))
+        H[:, 3:6] = np.eye(3)
+        return self._fuse(arrival - DVL_LATENCY, H, np.asarray(velocity, dtype=float), np.eye(3) * DVL_NOISE ** 2,
+                          "dvl")
+
+    def depth(self, t: float, down: float) -> bool:
+        H = np.zeros((1, N))
+        H[0, 2] = 1.0
+        return self._fuse(t, H, np.array([down]), np.eye(1) * DEPTH_NOISE ** 2, "depth")
+
+    def vehicle_position(self, t: float, north: float, east: float) -> bool:
+        """The vehicle's own horizontal position, fused until a navigation source has given a measurement, and again
+        once none has spoken for SOURCE_SILENCE s."""
+        sourced = self.fused["fix"] + self.fused["dvl"] > 0
+        if sourced and t - self.last_source < SOURCE_SILENCE:
+            return False
+        H = np.zeros((2, N))
+        H[0, 0] = H[1, 1] = 1.0
+        return self._fuse(t, H, np.array([north, east]), np.eye(2) * VEHICLE_NOISE ** 2, "vehicle")
+
+    def _reset_due(self, arrival: float) -> bool:
+        """The first fix (what came before was the vehicle's estimate, and the force learnt from it) and one after
+        RESET_AFTER s of fixes refused in a row set the position, not the force or the current."""
+        first = self.fused["fix"] == 0 and self.fused["dvl"] == 0
+        return first or (self.refused_since is not None and arrival - self.refused_since >= RESET_AFTER)
+
+    def _fuse(self, t: float, H: np.ndarray, y: np.ndarray, R: np.ndarray, kind: str, reset: bool = False) -> bool:
+        """Fuse y = H z + noise(R) at vehicle time t (a step's end at or before it), then step forward again."""
+        if self.t is None or not self.steps or t < self.steps[0].t or t > self.t + STEP:
+            return False
+        k = len(self.steps) - 1
+        while k > 0 and self.steps[k].t > t:
+            k -= 1
+        step = self.steps[k]
+        z, P = step.z, step.P
+        if reset:      # as EKF3's ResetPosition: the position is the fix's, the rest kept and unlinked from it
+            z, P = z.copy(), P.copy()
+            z[:2] = y
+            P[:2, :], P[:, :2] = 0.0, 0.0
+            P[:2, :2] = R
+        updated = (z, P) if reset else _update(z, P, H, y, R, gate=True)
+        if updated is None:
+            self.refused[kind] += 1
+            return False
+        step.z, step.P = updated
+        step.measurements.append((H, y, R))
+        z, P = updated
+        for later in list(self.steps)[k + 1:]:
+            z, P = self._predict(z, P, later.attitude, later.tau, later.h)
+            for measurement in later.measurements:
+                z, P = _update(z, P, *measurement, gate=False)
+            later.z, later.P = z, P
+        self.z, self.P = z.copy(), P.copy()
+        self.fused[kind] += 1
+        return True
+
+    def _derivative(self, z: np.ndarray, attitude: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        x = self._x
+        x[0:3], x[3:6], x[6:9], x[9:12] = z[0:3], attitude[0:3], z[3:6], attitude[3:6]
+        self._tau[:] = tau
+        self._tau[:3] += z[6:9]
+        self._current[:2] = z[9:11]
+        kernel.state_derivative(self.model, x, self._tau, self._current, self._dx)
+        return np.concatenate([self._dx[0:3], self._dx[6:9], np.zeros(5)])
+
+    def _predict(self, z: np.ndarray, P: np.ndarray, attitude: np.ndarray, tau: np.ndarray,
+                 h: float) -> tuple[np.ndarray, np.ndarray]:
+        """One Euler step of the model and its covariance (the Jacobian by central differences)."""
+        f = self._derivative(z, attitude, tau)
+        J = np.empty((N, N))
+        for i in range(N):
+            d = np.zeros(N)
+            d[i] = 1e-4
+            J[:, i] = (self._derivative(z + d, attitude, tau) - self._derivative(z - d, attitude, tau)) / 2e-4
+        F = np.eye(N) + h * J
+        Q = np.diag([POSITION_NOISE ** 2] * 3 + [ACCEL_NOISE ** 2] * 3 + [FORCE_WALK ** 2] * 3
+                    + [CURRENT_WALK ** 2] * 2) * h
+        return z + h * f, F @ P @ F.T + Q

@@ -1,0 +1,129 @@
+"""The run's own model-aided estimator (`flight.model_estimator`) against a simulated vehicle: the shared compiled
+plant under a known wrench, a body disturbance and a current, acoustic fixes that are noisy and 0.4 s late, the
+Bar30's depth. What it must do: beat the fixes it is given by a wide margin, learn the force and the current the
+model does not know, fuse a late fix at its own time, refuse an outlier, take in a lasting jump after RESET_AFTER at
+a flyable pace, and give the law an output that moves less than its raw estimate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rov_mav.flight import model_estimator as me
+from rov_mav.model import kernel
+from rov_mav.model.environment import Environment
+from rov_mav.model.vehicle import load_vehicle
+
+FIX_NOISE = 0.15          # m
+DISTURBANCE = np.array([-1.0, 1.0, 2.0, 0.1, 0.1, 0.0])
+CURRENT = np.array([0.04, 0.03, 0.0])
+
+
+def _wrench(t: float) -> np.ndarray:
+    return np.array([20 * np.sin(0.2 * t), 15 * np.cos(0.13 * t), 5 * np.sin(0.3 * t), 0, 0, 3 * np.sin(0.1 * t)])
+
+
+def _fly(duration: float = 60.0, latency: float = me.UGPS_LATENCY, fix_offset=lambda t: np.zeros(2),
+         outlier_at: float | None = None, seed: int = 1):
+    """Simulate and estimate; returns (estimator, times, errors (n, 6): raw position and output position - truth,
+    outputs (n, 3), raw (n, 3))."""
+    vehicle = load_vehicle()
+    m = vehicle.packed()
+    env = Environment(disturbance=DISTURBANCE, current=CURRENT).packed(vehicle)
+    rng = np.random.default_rng(seed)
+    x = np.zeros(12)
+    x[2] = 2.0
+    ws = np.zeros(80)
+    est = me.ModelEstimator(m)
+    est.start(0.0, x[:6], x[6:])
+    h, sample = 0.002, 0.02
+    fixes, next_fix, times, errors, outputs, raws = [], 0.0, [], [], [], []
+    for k in range(int(duration / h)):
+        t = k * h
+        tau = _wrench(t)
+        if k % round(sample / h) == 0:
+            est.commanded(t, tau)
+        kernel.rk4_step(m, env, x, tau, t, h, ws)
+        t = (k + 1) * h
+        if t >= next_fix - 1e-9:
+            next_fix += 1 / 3.8
+            error = FIX_NOISE * rng.standard_normal(2) + fix_offset(t)
+            if outlier_at is not None and abs(t - outlier_at) < 0.13:
+                error = error + np.array([3.0, -3.0])
+            fixes.append((t + latency, *(x[:2] + error)))
+        if (k + 1) % round(sample / h) == 0:
+            est.advance(t, np.concatenate([x[3:6], x[9:12]]))
+            est.depth(t, x[2] + 0.005 * rng.standard_normal())
+            while fixes and fixes[0][0] <= t + 1e-9:
+                arrival, north, east = fixes.pop(0)
+                est.fix(arrival, north, east, FIX_NOISE)
+            times.append(t)
+            errors.append(np.r_[est.z[:3] - x[:3], est.position - x[:3]])
+            outputs.append(est.position)
+            raws.append(est.z[:3].copy())
+    return est, np.array(times), np.array(errors), np.array(outputs), np.array(raws)
+
+
+def _rms(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+
+
+@pytest.fixture(scope="module")
+def flown():
+    return _fly()
+
+
+def test_it_beats_the_fixes_it_is_given_and_learns_what_the_model_does_not_know(flown):
+    est, t, errors, _, _ = flown
+    settled = t > 20.0
+    horizontal = _rms(errors[settled, :2])
+    assert horizontal < 0.5 * FIX_NOISE * np.sqrt(2), horizontal      # the fixes' own RMS is 0.21 m
+    assert _rms(errors[settled, 3:5]) < 0.6 * FIX_NOISE * np.sqrt(2)  # the output too, smoothed
+    assert np.sqrt(np.mean(errors[settled, 2] ** 2)) < 0.01            # depth from the Bar30
+    np.testing.assert_allclose(est.z[6:9], DISTURBANCE[:3], atol=0.6)  # the body force the model lacks
+    np.testing.assert_allclose(est.z[9:11], CURRENT[:2], atol=0.02)    # and the current
+    assert est.refused["fix"] == 0 and est.fused["fix"] > 200
+
+
+def test_a_late_fix_is_fused_at_its_own_time(monkeypatch):
+    """Fixes 1 s late, fused at their time of validity, against the same fixes fused as if they had just been taken:
+    the latter estimate is worse."""
+    monkeypatch.setattr(me, "UGPS_LATENCY", 1.0)
+    _, t, errors, _, _ = _fly(latency=1.0)
+    monkeypatch.setattr(me, "UGPS_LATENCY", 0.0)
+    _, _, naive, _, _ = _fly(latency=1.0)
+    settled = t > 20.0
+    assert _rms(errors[settled, :2]) < 0.7 * _rms(naive[settled, :2])
+
+
+def test_an_outlier_is_refused(flown):
+    _, t, errors, _, _ = flown
+    est, t_out, with_outlier, _, _ = _fly(outlier_at=30.0)
+    assert est.refused["fix"] >= 1
+    after = (t_out > 30.0) & (t_out < 35.0)
+    assert np.max(np.linalg.norm(with_outlier[after, :2], axis=1)) < 0.3
+
+
+def test_a_lasting_jump_is_taken_in_after_reset_after_at_a_flyable_pace():
+    """From t = 30 s every fix is 2 m further north (a topside transceiver moved, a reset): refused at first,
+    then taken, and the output moves to it at CATCH_UP m/s at most."""
+    est, t, errors, outputs, raws = _fly(duration=60.0, fix_offset=lambda t: np.array([2.0, 0.0]) * (t >= 30.0))
+    assert est.refused["fix"] > 5
+    late = t > 55.0
+    assert np.all(np.abs(errors[late, 0] - 2.0) < 0.4), "the estimate followed the fixes in the end"
+    jumped = t > 30.0
+    steps = np.linalg.norm(np.diff(outputs[jumped], axis=0), axis=1) / np.diff(t[jumped])
+    truth_speed = 1.0     # m/s: more than the simulated vehicle's own speed
+    assert np.max(steps) < truth_speed + me.CATCH_UP
+    raw_steps = np.linalg.norm(np.diff(raws[jumped], axis=0), axis=1)
+    assert np.max(raw_steps) > 1.0       # the filter itself jumped: the output is what kept the pace
+
+
+def test_the_law_sees_an_output_that_moves_less_than_the_raw_estimate(flown):
+    _, t, _, outputs, raws = flown
+    settled = t > 20.0
+
+    def variation(a):
+        return float(np.sum(np.abs(np.diff(np.diff(a[settled], axis=0), axis=0))))   # of the velocity it implies
+
+    assert variation(outputs) < 0.5 * variation(raws)
