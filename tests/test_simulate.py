@@ -155,3 +155,20 @@ def test_plant_params_mismatch_changes_the_run(tmp_path, vehicle, line):
     matched = metrics_of(simulate(line, settings, vehicle), line, "baseline")
     heavy = metrics_of(simulate(line, settings, vehicle, plant=vehicle.scaled(1.2)), line, "baseline")
     assert heavy["rms_position_error_steady_m"] > matched["rms_position_error_steady_m"] * 1.1
+
+
+def test_a_missions_navigation_is_said_to_be_the_built_in_vehicles_not_the_offline_loops(tmp_path):
+    """`environment: navigation: ugps` changes what `run` and `sim-bridge` measure; offline the law sees the
+    environment's noise and telemetry, and `simulate` says so rather than pretend."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text("name: nav\nstart: {position: [0.0, 0.0, 1.0], heading: 0.0}\n"
+                       "path:\n  - {goto: [0.5, 0.0, 1.0], speed: 0.2}\nenvironment:\n  navigation: ugps\n")
+    done = subprocess.run([sys.executable, "-m", "rov_mav.cli", "simulate", str(mission), "--out", str(tmp_path / "o"),
+                           "--rerun", "off"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "environment: navigation (ugps) is the built-in vehicle's (run, sim-bridge); offline, the law sees the " \
+           "state with environment: noise and telemetry instead" in done.stderr
+    mission.write_text(mission.read_text().replace("ugps", "ideal"))
+    done = subprocess.run([sys.executable, "-m", "rov_mav.cli", "simulate", str(mission), "--out", str(tmp_path / "o"),
+                           "--rerun", "off"], capture_output=True, text=True, timeout=300)
+    assert "navigation" not in done.stderr

@@ -86,7 +86,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from rov_mav.commands.common import progress_bar
+    from rov_mav.commands.common import note_offline_navigation, progress_bar
     from rov_mav.config import ConfigError
     from rov_mav.mission.loader import load
     from rov_mav.model.vehicle import load_vehicle
@@ -95,6 +95,8 @@ def main(args: argparse.Namespace) -> int:
 
     controllers = list(dict.fromkeys(n for group in (args.controllers or [list(BENCH_KINDS)]) for n in group))
     missions = [load(path) for path in (args.missions or DEFAULT_MISSIONS)]
+    for mission in missions:
+        note_offline_navigation(mission)
     names = [m.name for m in missions]
     if len(set(names)) < len(names):
         raise ConfigError(f"--missions: two missions named '{next(n for n in names if names.count(n) > 1)}'")

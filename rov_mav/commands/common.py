@@ -67,6 +67,17 @@ def load_mission(args: argparse.Namespace) -> Mission:
     return mission
 
 
+def note_offline_navigation(mission: Mission) -> None:
+    """One line on stderr when a mission's environment names a navigation the offline loop does not fly: its
+    measurements are the environment's noise and telemetry (`model.environment`), not the built-in vehicle's
+    sensors and estimator."""
+    navigation = mission.environment.navigation
+    if navigation is not None and not navigation.ideal:
+        print(f"rov-mav: {mission.source}: environment: navigation ({navigation.name}) is the built-in vehicle's "
+              "(run, sim-bridge); offline, the law sees the state with environment: noise and telemetry instead",
+              file=sys.stderr)
+
+
 def report_skipped(mission: Mission) -> None:
     for line in mission.skipped:
         print(f"rov-mav: {mission.source}: {line}", file=sys.stderr)

@@ -14,6 +14,7 @@ from rov_mav.commands.common import (
     check_rerun_output,
     controller_settings,
     load_mission,
+    note_offline_navigation,
     rerun_recording,
 )
 from rov_mav.mission.missions import MAX_DURATION
@@ -49,6 +50,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.offline.simulation import simulate
 
     mission = load_mission(args)
+    note_offline_navigation(mission)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model

@@ -30,6 +30,7 @@ from rov_mav.commands.common import (
     check_rerun_output,
     controller_settings,
     load_mission,
+    note_offline_navigation,
     progress_bar,
     rerun_recording,
 )
@@ -122,6 +123,7 @@ def write_gains(path: Path, settings: ControllerSettings, header: str) -> None:
 
 def main(args: argparse.Namespace) -> int:
     mission = load_mission(args)
+    note_offline_navigation(mission)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
     out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
