@@ -8,15 +8,16 @@ import sys
 
 import numpy as np
 import pytest
+import yaml
 from conftest import MISSIONS
 
 from rov_mav.control import law
 from rov_mav.control.controller import load_settings
 from rov_mav.mission.metrics import trace_metrics
-from rov_mav.mission.missions import load_mission
+from rov_mav.mission.missions import load_mission, mission_from_dict
 from rov_mav.model import dynamics
 from rov_mav.offline import loop_kernel
-from rov_mav.offline.simulation import simulate
+from rov_mav.offline.simulation import NO_NAVIGATION, simulate
 
 
 @pytest.fixture(scope="module")
@@ -82,8 +83,8 @@ def test_batch_runs_equal_single_runs(vehicle, line):
         cost, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
         loop_kernel.simulate_batch(np.tile(vehicle.packed(), (n, 1)), np.tile(line.environment.packed(), (n, 1)),
                               vehicle.packed(), g, *settings.kernel_arguments(), ref, 0.01, 1, x0,
-                              np.zeros(n, dtype=np.int64), *loop_kernel.printed_cost(ref),
-                              *[e[:n] for e in empty], cost, steps)
+                              np.zeros(n, dtype=np.int64), NO_NAVIGATION, np.zeros(n, dtype=np.int64),
+                              *loop_kernel.printed_cost(ref), *[e[:n] for e in empty], cost, steps)
         return cost
 
     together = run(gains)
@@ -102,7 +103,7 @@ def test_simulated_sensor_noise_has_the_configured_spread_and_is_white():
     def draws(seed, n=20000):
         out, rng = np.zeros((n, 12)), np.uint64(seed)
         for k in range(n):
-            rng = np.uint64(loop_kernel._measure(x, sigma, out[k], rng) % 2**64)   # Numba returns a Python int
+            rng = np.uint64(loop_kernel._measure(x, sigma, NO_NAVIGATION[0], k, out[k], rng) % 2**64)   # a Python int
         return out - x
 
     noise = draws(7)
@@ -126,8 +127,8 @@ def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
     empty = np.zeros((1, 0, 6))
     loop_kernel.simulate_batch(vehicle.packed()[None], line.environment.packed()[None], vehicle.packed(),
                           settings.vector[None], *settings.kernel_arguments(), ref, 0.05, 1,
-                          np.concatenate([line.start_pose, np.zeros(6)]), np.zeros(1, dtype=np.int64),
-                          *loop_kernel.printed_cost(ref), *[empty] * 6, cost, steps)
+                          np.concatenate([line.start_pose, np.zeros(6)]), np.zeros(1, dtype=np.int64), NO_NAVIGATION,
+                          np.zeros(1, dtype=np.int64), *loop_kernel.printed_cost(ref), *[empty] * 6, cost, steps)
     assert cost[0] == loop_kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1
 
 
@@ -157,18 +158,27 @@ def test_plant_params_mismatch_changes_the_run(tmp_path, vehicle, line):
     assert heavy["rms_position_error_steady_m"] > matched["rms_position_error_steady_m"] * 1.1
 
 
-def test_a_missions_navigation_is_said_to_be_the_built_in_vehicles_not_the_offline_loops(tmp_path):
-    """`environment: navigation: ugps` changes what `run` and `sim-bridge` measure; offline the law sees the
-    environment's noise and telemetry, and `simulate` says so rather than pretend."""
-    mission = tmp_path / "m.yaml"
-    mission.write_text("name: nav\nstart: {position: [0.0, 0.0, 1.0], heading: 0.0}\n"
-                       "path:\n  - {goto: [0.5, 0.0, 1.0], speed: 0.2}\nenvironment:\n  navigation: ugps\n")
-    done = subprocess.run([sys.executable, "-m", "rov_mav.cli", "simulate", str(mission), "--out", str(tmp_path / "o"),
-                           "--rerun", "off"], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert "environment: navigation (ugps) is the built-in vehicle's (run, sim-bridge); offline, the law sees the " \
-           "state with environment: noise and telemetry instead" in done.stderr
-    mission.write_text(mission.read_text().replace("ugps", "ideal"))
-    done = subprocess.run([sys.executable, "-m", "rov_mav.cli", "simulate", str(mission), "--out", str(tmp_path / "o"),
-                           "--rerun", "off"], capture_output=True, text=True, timeout=300)
-    assert "navigation" not in done.stderr
+def test_on_a_missions_navigation_the_offline_law_flies_the_built_in_vehicles_estimate(vehicle):
+    """`environment: navigation: ugps`: simulate measures the state with the errors of the built-in vehicle's
+    estimator along the mission as a run meets it (`sim_bridge.estimate_errors`, `flight.law_view`), so the true vehicle strays
+    from the path as far as the estimate does; the same seed flies the same run, another seed another."""
+    from rov_mav.commands.common import navigation_errors
+
+    text = ("name: nav\nstart: {position: [0.0, 0.0, 1.0], heading: 0.0}\n"
+            "path:\n  - {goto: [6.0, 0.0, 1.0], speed: 0.3}\n  - {goto: [6.0, 4.0, 1.0], speed: 0.3}\n"
+            "environment:\n  navigation: NAV\n")
+    settings = load_settings("fuzzy")
+
+    def flown(navigation, seed):
+        mission = mission_from_dict(yaml.safe_load(text.replace("NAV", navigation)), "nav.yaml")
+        trace = simulate(mission, settings, vehicle, seed=seed, navigation_errors=navigation_errors)
+        assert trace.completed
+        return trace, float(np.sqrt(np.mean(np.sum((trace.eta[:, :3] - trace.reference[:, :3]) ** 2, axis=1))))
+
+    _, ideal = flown("ideal", 1)
+    a, ugps = flown("ugps", 1)
+    b, again = flown("ugps", 1)
+    c, other = flown("ugps", 2)
+    assert ideal < 0.01 and ugps > 0.04, (ideal, ugps)     # the fixes' error, as the bridge's estimate has it
+    np.testing.assert_array_equal(a.eta, b.eta)
+    assert not np.array_equal(a.eta, c.eta) and other > 0.04

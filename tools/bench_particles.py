@@ -90,7 +90,8 @@ def ours_final_state(problem: tuning.TuningProblem, params: np.ndarray) -> tuple
     logs = [np.zeros((1, n_steps + 1, 6)) for _ in range(6)]
     cost, steps = np.zeros(1), np.zeros(1, dtype=np.int64)
     loop_kernel.simulate_batch(problem.plants[:1], problem.envs[:1], problem.model, params[:1], *problem.controller,
-                               problem.ref, problem.dt, 1, problem.x0, problem.seeds[:1], problem.weights,
+                               problem.ref, problem.dt, 1, problem.x0, problem.seeds[:1], problem.nav_errors,
+                               problem.nav_index[:1], problem.weights,
                                problem.tau_ff, problem.tau_max, tuning.NO_LIMIT, *logs, cost, steps)
     last = int(steps[0])
     return cost[0], np.concatenate([logs[0][0, last], logs[1][0, last]])

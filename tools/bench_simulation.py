@@ -16,6 +16,7 @@ from rov_mav.control.controller import load_settings
 from rov_mav.mission.missions import load_mission
 from rov_mav.model.vehicle import load_vehicle
 from rov_mav.offline import loop_kernel
+from rov_mav.offline.simulation import NO_NAVIGATION
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -36,7 +37,8 @@ def batch_runner(n: int, duration: float = 60.0, dt: float = 0.01):
 
     def run():
         loop_kernel.simulate_batch(plant, env, vehicle.packed(), gains, *args, ref, dt, 1, x0,
-                              np.zeros(n, dtype=np.int64), *loop_kernel.printed_cost(ref),
+                              np.zeros(n, dtype=np.int64), NO_NAVIGATION, np.zeros(n, dtype=np.int64),
+                              *loop_kernel.printed_cost(ref),
                               empty, empty, empty, empty, empty, empty, cost, steps)
         return cost
 

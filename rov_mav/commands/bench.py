@@ -86,7 +86,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from rov_mav.commands.common import note_offline_navigation, progress_bar
+    from rov_mav.commands.common import navigation_errors, progress_bar
     from rov_mav.config import ConfigError
     from rov_mav.mission.loader import load
     from rov_mav.model.vehicle import load_vehicle
@@ -95,8 +95,6 @@ def main(args: argparse.Namespace) -> int:
 
     controllers = list(dict.fromkeys(n for group in (args.controllers or [list(BENCH_KINDS)]) for n in group))
     missions = [load(path) for path in (args.missions or DEFAULT_MISSIONS)]
-    for mission in missions:
-        note_offline_navigation(mission)
     names = [m.name for m in missions]
     if len(set(names)) < len(names):
         raise ConfigError(f"--missions: two missions named '{next(n for n in names if names.count(n) > 1)}'")
@@ -120,7 +118,7 @@ def main(args: argparse.Namespace) -> int:
     total = bench.work(missions, controllers, training, held_out, args.seeds, options, args.tunes)
     with backend, progress_bar(total=total, desc="bench", unit="tick", unit_scale=True) as bar:
         result = bench.run_bench(missions, controllers, model, training, held_out, args.seeds, options, backend,
-                                 args.threads, bar.update, args.tunes)
+                                 args.threads, bar.update, args.tunes, navigation_errors)
     interval = "" if args.tunes == 1 else f", over the {args.tunes} tunes"
     settings = {"controllers": controllers, "missions": names, "training": args.training, "held_out": args.scenarios,
                 "seeds": args.seeds, "particles": particles, "iterations": iterations, "tunes": args.tunes,
@@ -171,6 +169,7 @@ def _write(out: Path, result, settings: dict, missions, model, held_out) -> None
 def _record(folder: Path, result, mission, model, held_out) -> list[Path]:
     """One Rerun recording per controller: its median held-out run on the first mission (over every tune)."""
     from rov_mav import telemetry
+    from rov_mav.commands.common import navigation_errors
     from rov_mav.offline import bench
 
     scenarios = {s.name: s for s in held_out}
@@ -180,7 +179,8 @@ def _record(folder: Path, result, mission, model, held_out) -> list[Path]:
         run = bench.representative(result.runs, kind, mission.name)
         if run is None:
             continue
-        trace, _ = bench.replay(mission, tuned[kind, run.tune].settings, model, scenarios[run.scenario], run.seed)
+        trace, _ = bench.replay(mission, tuned[kind, run.tune].settings, model, scenarios[run.scenario], run.seed,
+                                navigation_errors)
         path = folder / f"{kind}.rrd"
         rec = telemetry.open_recording(telemetry.RerunTarget("save", str(path)),
                                        telemetry.default_blueprint(trace.reference[:, :3]))

@@ -67,15 +67,20 @@ def load_mission(args: argparse.Namespace) -> Mission:
     return mission
 
 
-def note_offline_navigation(mission: Mission) -> None:
-    """One line on stderr when a mission's environment names a navigation the offline loop does not fly: its
-    measurements are the environment's noise and telemetry (`model.environment`), not the built-in vehicle's
-    sensors and estimator."""
-    navigation = mission.environment.navigation
-    if navigation is not None and not navigation.ideal:
-        print(f"rov-mav: {mission.source}: environment: navigation ({navigation.name}) is the built-in vehicle's "
-              "(run, sim-bridge); offline, the law sees the state with environment: noise and telemetry instead",
-              file=sys.stderr)
+_NAVIGATION_ERRORS: dict[tuple, object] = {}
+
+
+def navigation_errors(navigation, seed: int, reference, dt: float):
+    """The offline loops' `NavigationErrors`: the built-in vehicle's estimate along the mission
+    (`sim_bridge.estimate_errors`) as a run's law meets it (`flight.law_view`), computed once per (navigation, seed,
+    reference, dt) in this process (a bench flies each held-out run with every controller)."""
+    from rov_mav.flight.law_view import as_the_run_sees
+    from sim_bridge.estimate_errors import estimate_errors
+
+    key = (navigation, seed, reference.shape, hash(reference.tobytes()), dt)
+    if key not in _NAVIGATION_ERRORS:
+        _NAVIGATION_ERRORS[key] = as_the_run_sees(estimate_errors(navigation, seed, reference, dt), reference, dt)
+    return _NAVIGATION_ERRORS[key]
 
 
 def report_skipped(mission: Mission) -> None:

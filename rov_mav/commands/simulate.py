@@ -14,7 +14,7 @@ from rov_mav.commands.common import (
     check_rerun_output,
     controller_settings,
     load_mission,
-    note_offline_navigation,
+    navigation_errors,
     rerun_recording,
 )
 from rov_mav.mission.missions import MAX_DURATION
@@ -50,14 +50,14 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.offline.simulation import simulate
 
     mission = load_mission(args)
-    note_offline_navigation(mission)
     settings = controller_settings(args)
     model = load_vehicle(args.vehicle)
     plant = load_vehicle(args.plant_params) if args.plant_params else model
     out_dir = require_writable(args.out or f"out/simulate-{mission.name}-{settings.kind}", folder=True, option="--out")
     metrics_path = require_writable(args.metrics or out_dir / "metrics.json", folder=False, option="--metrics")
     check_rerun_output(args, out_dir / "run.rrd")
-    trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed)
+    trace = simulate(mission, settings, model, plant, duration=args.duration, seed=args.seed,
+                     navigation_errors=navigation_errors)
     metrics = trace_metrics(mission.name, settings.kind, trace)
     figures = plot_run(trace, f"{mission.name} / {settings.kind}", out_dir)
     metrics_path.parent.mkdir(parents=True, exist_ok=True)

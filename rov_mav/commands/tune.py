@@ -30,7 +30,7 @@ from rov_mav.commands.common import (
     check_rerun_output,
     controller_settings,
     load_mission,
-    note_offline_navigation,
+    navigation_errors,
     progress_bar,
     rerun_recording,
 )
@@ -123,7 +123,6 @@ def write_gains(path: Path, settings: ControllerSettings, header: str) -> None:
 
 def main(args: argparse.Namespace) -> int:
     mission = load_mission(args)
-    note_offline_navigation(mission)
     start = controller_settings(args)
     model = load_vehicle(args.vehicle)
     out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
@@ -138,7 +137,8 @@ def main(args: argparse.Namespace) -> int:
         lower, upper = start.family.default_bounds()
     scenarios = (load_scenarios(args.scenarios, mission.environment) if args.scenarios
                  else [nominal(mission.environment)])
-    problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration)
+    problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration,
+                                   navigation_errors=navigation_errors)
 
     if args.cluster:
         from rov_mav.offline.cluster import (
@@ -208,7 +208,7 @@ def _on_the_mission(mission: Mission, settings: ControllerSettings, model: Vehic
                     duration: float | None) -> tuple[dict, Trace]:
     """The gains, the metrics JSON of `simulate` and the cost of one recorded run on the mission as written,
     and that run."""
-    trace = simulate(mission, settings, model, duration=duration)
+    trace = simulate(mission, settings, model, duration=duration, navigation_errors=navigation_errors)
     metrics = trace_metrics(mission.name, settings.kind, trace)
     gains = {name: settings.as_yaml()[name] for name in settings.family.tuned}
     return {**gains, "mission_cost": problem.trace_cost(trace) if trace.completed else None, **metrics}, trace

@@ -96,7 +96,8 @@ class Environment:
     telemetry: np.ndarray = field(default_factory=lambda: np.zeros(2))   # sample period (s, 0 = every tick), delay (s)
     predict: bool = True        # the controller predicts its late measurement forward
     vehicle_faults: VehicleFaults = VehicleFaults()   # what fails on the vehicle, and when
-    navigation: Navigation | None = None  # the built-in vehicle's navigation (None: ideal); offline loops ignore it
+    navigation: Navigation | None = None  # the built-in vehicle's navigation (None: ideal); offline, its errors
+    # along the mission as a run meets them (`rov_mav.commands.common.navigation_errors`)
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":

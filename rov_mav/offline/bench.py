@@ -35,7 +35,7 @@ from rov_mav.model.thrusters import allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline import pso, tuning
 from rov_mav.offline.scenarios import Scenario
-from rov_mav.offline.simulation import CONTROL_DT, Trace, simulate
+from rov_mav.offline.simulation import CONTROL_DT, NavigationErrors, Trace, simulate
 
 VOLTAGE = 16.0          # V: a charged 4S pack, the runner's default before the vehicle reports one
 LEVEL = 0.95            # the intervals' confidence
@@ -163,20 +163,22 @@ def run_figures(trace: Trace, model: Vehicle, capacity: np.ndarray, thrust_limit
             "saturation_fraction": float(saturated.mean()) if saturated.size else 0.0}
 
 
-def replay(mission: Mission, settings: ControllerSettings, model: Vehicle, scenario: Scenario, seed: int
-           ) -> tuple[Trace, np.ndarray]:
-    """A held-out run as the bench flies it, recorded: `simulate` with the scenario's plant, water and noise seed,
-    the wrench clipped to the thrusters' capacity. Returns the trace and that capacity (6,)."""
+def replay(mission: Mission, settings: ControllerSettings, model: Vehicle, scenario: Scenario, seed: int,
+           navigation_errors: NavigationErrors | None = None) -> tuple[Trace, np.ndarray]:
+    """A held-out run as the bench flies it, recorded: `simulate` with the scenario's plant, water and noise seed
+    (and the mission's navigation), the wrench clipped to the thrusters' capacity. Returns the trace and that
+    capacity (6,)."""
     capacity = tuning.wrench_capacity(model, max_thrust(mission, scenario))
     trace = simulate(mission, settings, model, plant=model.scaled(scenario.plant_scale),
-                     environment=scenario.environment, seed=seed, wrench_limit=capacity)
+                     environment=scenario.environment, seed=seed, wrench_limit=capacity,
+                     navigation_errors=navigation_errors)
     return trace, capacity
 
 
 def evaluate(mission: Mission, settings: ControllerSettings, model: Vehicle, scenario: Scenario, seed: int,
-             tune: int = FIRST_SWARM_SEED) -> RunFigures:
+             tune: int = FIRST_SWARM_SEED, navigation_errors: NavigationErrors | None = None) -> RunFigures:
     """One held-out run's figures."""
-    trace, capacity = replay(mission, settings, model, scenario, seed)
+    trace, capacity = replay(mission, settings, model, scenario, seed, navigation_errors)
     figures = run_figures(trace, model, capacity, max_thrust(mission, scenario))
     return RunFigures(settings.kind, mission.name, scenario.name, scenario.group, seed, **figures, tune=tune)
 
@@ -184,10 +186,11 @@ def evaluate(mission: Mission, settings: ControllerSettings, model: Vehicle, sce
 def tune_controller(mission: Mission, kind: str, model: Vehicle, training: Sequence[Scenario],
                     options: pso.PSOOptions, backend: tuning.Backend,
                     callback: Callable[[int, float], None] | None = None,
-                    swarm_seed: int = FIRST_SWARM_SEED) -> Tuned:
+                    swarm_seed: int = FIRST_SWARM_SEED,
+                    navigation_errors: NavigationErrors | None = None) -> Tuned:
     """PSO of `kind`'s tuned gains on the mission over the training scenarios (the bench's common rules)."""
     start = load_settings(kind)
-    problem = tuning.build_problem(mission, start, model, training)
+    problem = tuning.build_problem(mission, start, model, training, navigation_errors=navigation_errors)
     lower, upper = start.family.default_bounds()
     t0 = time.perf_counter()
     result = tuning.tune(problem, lower, upper, options, swarm_seed, backend, callback)
@@ -249,16 +252,17 @@ def work(missions: Sequence[Mission], controllers: Sequence[str], training: dict
 def run_bench(missions: Sequence[Mission], controllers: Sequence[str], model: Vehicle,
               training: dict[str, list[Scenario]], held_out: dict[str, list[Scenario]], seeds: int,
               options: pso.PSOOptions, backend: tuning.Backend, threads: int,
-              progress: Callable[[int], None] = lambda n: None, tunes: int = 1) -> BenchResult:
+              progress: Callable[[int], None] = lambda n: None, tunes: int = 1,
+              navigation_errors: NavigationErrors | None = None) -> BenchResult:
     """The whole bench; training and held-out scenarios per mission name; `tunes` independent tunes per controller
     and mission. `progress(n)` after every PSO iteration and every held-out run with the ticks they simulated
-    (`work` in all)."""
+    (`work` in all). `navigation_errors`: each mission's `environment: navigation` in every run."""
     t0 = time.perf_counter()
     tuned = []
     for m in missions:
         iteration = _ticks(m) * options.particles * len(training[m.name])
         tuned += [tune_controller(m, kind, model, training[m.name], options, backend,
-                                  lambda it, best, n=iteration: progress(n), swarm_seed)
+                                  lambda it, best, n=iteration: progress(n), swarm_seed, navigation_errors)
                   for kind in controllers for swarm_seed in swarm_seeds(tunes)]
     t1 = time.perf_counter()
     by_name = {m.name: m for m in missions}
@@ -267,7 +271,7 @@ def run_bench(missions: Sequence[Mission], controllers: Sequence[str], model: Ve
 
     def job(args) -> RunFigures:
         mission, tune, scenario, seed = args
-        figures = evaluate(mission, tune.settings, model, scenario, seed, tune.swarm_seed)
+        figures = evaluate(mission, tune.settings, model, scenario, seed, tune.swarm_seed, navigation_errors)
         progress(_ticks(mission))
         return figures
 

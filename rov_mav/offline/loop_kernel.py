@@ -67,9 +67,10 @@ def _saturated(tau, tau_max):
 
 
 @inlined
-def _measure(x, noise, out, rng):
-    """The state as the sensors give it: out (12,) = x plus white noise (position, attitude, velocity, rate std);
-    returns the noise generator's next state."""
+def _measure(x, noise, nav_error, k, out, rng):
+    """The state as the sensors give it at tick k: out (12,) = x plus white noise (position, attitude, velocity, rate
+    std) plus the navigation's error at k (nav_error (M, 6): position, body velocity; none past its end, M = 0 for
+    none); returns the noise generator's next state."""
     for i in range(6):
         pose_sigma = noise[0] if i < 3 else noise[1]
         rate_sigma = noise[2] if i < 3 else noise[3]
@@ -80,6 +81,10 @@ def _measure(x, noise, out, rng):
             rng, n2 = normal(rng)
             out[i] += n1 * pose_sigma
             out[6 + i] += n2 * rate_sigma
+    if k < nav_error.shape[0]:
+        for i in range(3):
+            out[i] += nav_error[k, i]
+            out[6 + i] += nav_error[k, 3 + i]
     return rng
 
 
@@ -111,9 +116,10 @@ def _running_cost(weights, s, x, ref, tau, tau_ff):
 
 
 @compiled_loop
-def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x, seed, cost_weights, tau_ff, tau_max,
-         tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, commanded, state, ws):
-    """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed; the logs
+def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x, seed, nav_error, cost_weights, tau_ff,
+         tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, measured, commanded, state, ws):
+    """One run of simulate_batch from the state x (12,), advanced in place, its sensor noise seeded by seed and its
+    navigation's error nav_error (M, 6) added to what it measures (`_measure`); the logs
     (N+1, 6) or (0, 6) are this run's. measured: (late + 1, 12) ring of the last late + 1 ticks' measurements (the
     telemetry delay; only the ticks telemetry delivers are measured); commanded: (R, 6) ring of the wrenches applied
     since, R > the oldest measurement's age in ticks (for the prediction); state: the controller's, zeroed; ws: zeroed
@@ -150,7 +156,7 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
     slot = 0          # k % (late + 1): this tick's place in the ring
     for k in range(n_steps + 1):
         if every == 1 or k % every == 0:   # a measurement telemetry will deliver (late ticks from now)
-            rng = _measure(x, noise, measured[slot], rng)
+            rng = _measure(x, noise, nav_error, k, measured[slot], rng)
         slot = slot + 1 if slot < late else 0   # the oldest measurement, k - late, is in the next place
         sampled = k - late
         if k == 0 or (sampled >= 0 and (every == 1 or sampled % every == 0)):
@@ -203,14 +209,17 @@ def _fly(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, 
 
 
 @njit(cache=True, fastmath=FAST, error_model="numpy", nogil=True)
-def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x0, seeds, cost_weights,
-                   tau_ff, tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log, gamma_log, cost, steps_done):
+def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, substeps, x0, seeds, nav_errors,
+                   nav_index, cost_weights, tau_ff, tau_max, tau_limit, eta_log, nu_log, tau_log, tau_hat_log, s_log,
+                   gamma_log, cost, steps_done):
     """Closed-loop runs of a batch of vehicles: controller at 1/dt, plant by RK4 at dt/substeps.
 
     plant (B, 92), env (B, 22): each run's true vehicle and environment; ctrl (92,): the controller's model;
     params (B, P): each run's controller parameter vector for controller `kind` (`law_kernel.controller_step`,
     with the fuzzy rate table and its table_scale); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for
-    sensor noise. The controller sees the measured state (true state plus the environment's sensor noise, drawn for
+    sensor noise; nav_errors (E, M, 6): navigation errors (position, body velocity at each tick: the built-in
+    vehicle's estimate along the mission, `sim_bridge.estimate_errors`; M = 0 for none), run b's nav_errors[nav_index[
+    b]]. The controller sees the measured state (true state plus the environment's sensor noise, drawn for
     each tick whose measurement telemetry delivers) as telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
     the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.
     Where E_PREDICT is set, the controller acts on the held measurement carried forward to its tick through its own
@@ -230,7 +239,8 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
         late = max(0, int(round(env[b, E_SAMPLE_DELAY] / dt)))
         every = max(1, int(round(env[b, E_SAMPLE_PERIOD] / dt)))
         cost[b], steps_done[b] = _fly(plant[b], env[b], ctrl, params[b], kind, table, table_scale, ref, dt, substeps,
-                                      x0.copy(), seeds[b], cost_weights, tau_ff, tau_max, tau_limit, eta_log[b],
+                                      x0.copy(), seeds[b], nav_errors[nav_index[b]], cost_weights, tau_ff, tau_max,
+                                      tau_limit, eta_log[b],
                                       nu_log[b], tau_log[b], tau_hat_log[b], s_log[b], gamma_log[b],
                                       np.zeros((late + 1, 12)), np.zeros((late + every + 1, 6)),
                                       np.zeros(STATE_SIZE), np.zeros(254))

@@ -26,7 +26,7 @@ from rov_mav.model.thrusters import allocation_matrix
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline import loop_kernel, pso
 from rov_mav.offline.scenarios import Scenario
-from rov_mav.offline.simulation import Trace
+from rov_mav.offline.simulation import NavigationErrors, Trace, navigation_errors_of
 
 COSTS = ("tracking", "report")
 AGGREGATES = ("mean", "worst")
@@ -90,6 +90,8 @@ class TuningProblem:
     plants: np.ndarray       # (S, 92) each scenario's true vehicle
     envs: np.ndarray         # (S, 20) each scenario's water
     seeds: np.ndarray        # (S,) sensor-noise seeds
+    nav_errors: np.ndarray   # (E, M, 6) the navigation's errors (M = 0: none), scenario i's nav_errors[nav_index[i]]
+    nav_index: np.ndarray    # (S,)
     controller: tuple        # ControllerSettings.kernel_arguments()
     params: np.ndarray       # (P,) the controller's parameter vector; its first G entries are the tuned gains
     ref: np.ndarray          # (N+1, 18)
@@ -113,7 +115,8 @@ class TuningProblem:
         params = np.tile(self.params, (n, 1))
         params[:, :gains.shape[1]] = gains
         loop_kernel.simulate_batch(self.plants[scenario], self.envs[scenario], self.model, params, *self.controller,
-                                   self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.weights, self.tau_ff,
+                                   self.ref, self.dt, 1, self.x0, self.seeds[scenario], self.nav_errors,
+                                   self.nav_index[scenario], self.weights, self.tau_ff,
                                    self.tau_max, NO_LIMIT, empty, empty, empty, empty, empty, empty, cost, steps)
         return cost, steps
 
@@ -143,18 +146,23 @@ class TuningProblem:
 
 def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle, scenarios: Sequence[Scenario],
                   cost: str = "tracking", aggregate: str = "mean", duration: float | None = None,
-                  dt: float = 0.01) -> TuningProblem:
+                  dt: float = 0.01, navigation_errors: NavigationErrors | None = None) -> TuningProblem:
     """The tuning problem of a mission; the saturation limit is the thrusters' capacity per axis with the
-    mission's `limits.max_thrust` (default DEFAULT_MAX_THRUST) per thruster."""
+    mission's `limits.max_thrust` (default DEFAULT_MAX_THRUST) per thruster. With `navigation_errors`, every
+    scenario measures the state with the mission's navigation (`environment: navigation`), seeded by its seed."""
     if aggregate not in AGGREGATES:
         raise ValueError(f"unknown aggregate '{aggregate}' (choose from {', '.join(AGGREGATES)})")
     ref = mission.sampled_reference(dt, duration)
     capacity = wrench_capacity(model, mission.limits.max_thrust or DEFAULT_MAX_THRUST)
+    seeds = np.array([s.seed for s in scenarios], dtype=np.int64)
+    nav_errors, nav_index = navigation_errors_of(mission.environment.navigation, navigation_errors, seeds, ref, dt)
     return TuningProblem(
         model=model.packed(),
         plants=np.array([model.scaled(s.plant_scale).packed() for s in scenarios]),
         envs=np.array([s.environment.packed(model.scaled(s.plant_scale)) for s in scenarios]),
-        seeds=np.array([s.seed for s in scenarios], dtype=np.int64),
+        seeds=seeds,
+        nav_errors=nav_errors,
+        nav_index=nav_index,
         controller=settings.kernel_arguments(),
         params=settings.vector,
         ref=ref,
