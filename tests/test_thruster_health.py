@@ -8,7 +8,7 @@ import pytest
 
 from rov_mav.control.controller import Controller, load_settings
 from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.thruster_health import EVIDENCE, ThrusterHealth
+from rov_mav.flight.thruster_health import EVIDENCE, SETTLE, ThrusterHealth
 from rov_mav.mission.loader import load
 from rov_mav.model.environment import Environment
 from rov_mav.model.plant import Plant
@@ -19,10 +19,11 @@ STEP = 0.0025
 RATE = 50.0
 
 
-def fly(fault: str, until: float, noise=(0.0, 0.0, 0.0, 0.0), answer: bool = True, probe: bool = True):
+def fly(fault: str, until: float, noise=(0.0, 0.0, 0.0, 0.0), answer: bool = True, probe: bool = True,
+        jumped_at: float | None = None):
     """The square from its start pose with `fault` in the plant's thrusters (PWM -> T200 thrust -> the fault ->
-    first-order lag -> B f), the fuzzy law at RATE on the measured state: (verdicts as (t, Verdict), the watch,
-    position errors (t, m))."""
+    first-order lag -> B f), the fuzzy law at RATE on the measured state, the watch told the estimate jumped at
+    `jumped_at`: (verdicts as (t, Verdict), the watch, position errors (t, m))."""
     mission = load("missions/square.yaml")
     vehicle = load_vehicle(None)
     plant = Plant(vehicle, Environment(disturbance=mission.environment.disturbance, noise=np.array(noise)),
@@ -38,6 +39,8 @@ def fly(fault: str, until: float, noise=(0.0, 0.0, 0.0, 0.0), answer: bool = Tru
     for k in range(int(until * RATE)):
         t = k * period
         eta, nu = plant.measured()
+        if jumped_at is not None and abs(t - jumped_at) < 0.5 * period:
+            health.estimate_jumped(t)
         health.observe(t, np.r_[eta, nu])
         for verdict in health.verdicts(t):
             found.append((t, verdict))
@@ -115,3 +118,13 @@ def test_any_seven_thrusters_keep_all_six_axes_with_half_the_authority_on_the_lo
         share = actuation.allocator.authority() / full
         assert np.all(share > 0.45) and np.sum(share < 0.99) == 3
         actuation.set_gain(i, 1.0)
+
+
+def test_after_an_estimate_jump_no_thruster_is_named_until_the_motion_settles():
+    """A jump of the position estimate (an EKF reset) steps its velocity and the law answers with a burst of thrust
+    that any hypothesis can partly fit: the watch starts its scores again and names nothing for SETTLE s. A thruster
+    that really died just before is still named after it."""
+    found, _, _ = fly("thruster=3:dead@60s", 60.0 + SETTLE + 4.0, jumped_at=60.2)
+    assert found, "not detected after the quiet time"
+    t, verdict = found[0]
+    assert t >= 60.2 + SETTLE and verdict.thruster == 3

@@ -251,6 +251,9 @@ class FlightLoop:
         else:
             eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
             if fresh and self.thrusters is not None:
+                jumps = io.decoder.jumps.jumps
+                if jumps and jumps[-1].t == state.t:     # this sample's estimate jumped: not a thruster's doing
+                    self.thrusters.health.estimate_jumped(state.t)
                 self.thrusters.observe(state.t, np.concatenate([state.eta, state.nu]))
             if self.predictor is not None:
                 if t_act - state.t > MAX_HORIZON and not o.dry_run:

@@ -259,6 +259,15 @@ class ThrusterHealth:
         column = self.matrix[:, i]
         return float(column @ (self.faulty[i].d - before[-1]) / (column @ column))
 
+    def estimate_jumped(self, t: float) -> None:
+        """The position estimate jumped at vehicle time t (a fix after a dropout, an EKF reset: `estimate_jumps`):
+        its velocity steps with it and the law answers with a burst of thrust, motion no thruster's fault explains
+        but any hypothesis can partly fit. Every score starts again and no verdict comes for SETTLE s."""
+        for h in (self.healthy, *self.faulty):
+            h.score = 0.0
+        self._since = None
+        self._quiet_until = max(self._quiet_until, t + SETTLE)
+
     def answered(self, verdict: Verdict) -> None:
         """The allocation now uses `verdict.gain` for the thruster: what it is told is scaled by it from now on.
         Every hypothesis starts again (scores, a_i; the disturbance open to learning: a stuck thruster's push is the
