@@ -250,11 +250,12 @@ class FlightLoop:
             self.output.stream.tick(state.t, reference, send=not o.dry_run)
         else:
             eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
-            if fresh and self.thrusters is not None:
+            if fresh and self.thrusters is not None:     # on the vehicle's own state: not on a model's estimate
                 jumps = io.decoder.jumps.jumps
                 if jumps and jumps[-1].t == state.t:     # this sample's estimate jumped: not a thruster's doing
                     self.thrusters.health.estimate_jumped(state.t)
-                self.thrusters.observe(state.t, np.concatenate([state.eta, state.nu]))
+                vehicle = io.vehicle_state
+                self.thrusters.observe(state.t, np.concatenate([vehicle.eta, vehicle.nu]))
             if self.predictor is not None:
                 if t_act - state.t > MAX_HORIZON and not o.dry_run:
                     raise Abort(f"the state is {t_act - state.t:.2f} s old when its command acts (round trip "

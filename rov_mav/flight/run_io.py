@@ -33,7 +33,8 @@ class RunIO:
         self.truth = Truth()                      # where a simulator says the vehicle really is (SIM_STATE)
         self._jumps_said = 0
         self._own_said = False
-        self.last_state: State | None = None
+        self.last_state: State | None = None      # the state the law flies on
+        self.vehicle_state: State | None = None   # ... and the vehicle's, as it reports it (the same sample)
         self.signal_name: str | None = None
         self.stopping = False
         self.rc_seen: list[list[int]] | None = None     # RC_CHANNELS rows, while the claim observes
@@ -65,15 +66,16 @@ class RunIO:
                 received = wall
         if received is None:
             return None
-        self.last_state = self.decoder.state(received)
-        if self.own is not None:
-            self.last_state = self.own.state(self.last_state)
-            if self.own.started_by is not None and not self._own_said:
-                self._own_said = True
-                self.say(f"flying on the run's own estimate from here: {self.own.started_by} started it")
+        self.vehicle_state = self.decoder.state(received)
+        self.last_state = self.vehicle_state if self.own is None else self.own.state(self.vehicle_state)
+        flying_own = self.own is not None and self.own.started_by is not None
+        if flying_own and not self._own_said:
+            self._own_said = True
+            self.say(f"flying on the run's own estimate from here: {self.own.started_by} started it")
         jumps = self.decoder.jumps.jumps
         while self._jumps_said < len(jumps):
-            self.say(jumps[self._jumps_said].describe(), "warning")
+            text = jumps[self._jumps_said].describe()
+            self.say(f"the vehicle's estimate: {text}; the run flies its own" if flying_own else text, "warning")
             self._jumps_said += 1
         return self.last_state
 
