@@ -51,6 +51,7 @@ from rov_mav.model.navigation import Dvl, Ugps
 STILL_WATER = np.zeros(3)
 N = 11                    # north, east, down, u, v, w, X_d, Y_d, Z_d, current north, current east
 STEP = 0.02               # s: the longest prediction step
+DIFFERENCE = 1e-4         # m/s: the step of the Jacobian's differences
 HISTORY = 1.5             # s of steps kept to fuse a late measurement at its own time
 UGPS_LATENCY = Ugps().latency     # s from a fix to its arrival (the figures of `rov_mav.model.navigation`)
 DVL_LATENCY = Dvl().latency
@@ -90,6 +91,7 @@ class _Step:
     tau: np.ndarray       # (6,) the commanded wrench over it
     z: np.ndarray         # (N,) the state at t, the measurements of its time fused
     P: np.ndarray         # (N, N)
+    F: np.ndarray         # (N, N) the step's transition (kept: stepping forward again after a late fusion reuses it)
     measurements: list = field(default_factory=list)   # (H, y, R) fused at t: fused again when an earlier one is
 
 
@@ -112,6 +114,9 @@ class ModelEstimator:
         self._x = np.zeros(12)
         self._dx = np.zeros(12)
         self._tau = np.zeros(6)
+        self._force_to_acceleration = self.model[kernel.P_MINV:kernel.P_MINV + 36].reshape(6, 6)[:3, :3].copy()
+        self._Q = np.diag([POSITION_NOISE ** 2] * 3 + [ACCEL_NOISE ** 2] * 3 + [FORCE_WALK ** 2] * 3
+                          + [CURRENT_WALK ** 2] * 2)
         self._current = np.zeros(3)
 
     @property
@@ -127,7 +132,7 @@ class ModelEstimator:
         self.out = self.z[:6].copy()
         self.steps.clear()
         self.steps.append(_Step(t, 0.0, np.concatenate([eta[3:6], nu[3:6]]).astype(float), np.zeros(6),
-                                self.z.copy(), self.P.copy()))
+                                self.z.copy(), self.P.copy(), np.eye(N)))
 
     def commanded(self, t_act: float, wrench: np.ndarray) -> None:
         """A wrench that acts from vehicle time t_act (until the next one)."""
@@ -139,10 +144,11 @@ class ModelEstimator:
         while self.t is not None and t - self.t > 1e-9:
             h = min(STEP, t - self.t)
             tau = self.wrenches.slot_means(self.t + h, h, h)[-1]
-            self.z, self.P = self._predict(self.z, self.P, attitude, tau, h)
+            F = self._transition(self.z, attitude, tau, h)
+            self.z, self.P = self._predict(self.z, self.P, attitude, tau, h, F)
             self._output_step(attitude, tau, h)
             self.t += h
-            self.steps.append(_Step(self.t, h, attitude, tau, self.z.copy(), self.P.copy()))
+            self.steps.append(_Step(self.t, h, attitude, tau, self.z.copy(), self.P.copy(), F))
         while len(self.steps) > 1 and self.steps[1].t < (self.t or 0.0) - HISTORY:
             self.steps.popleft()
 
@@ -247,7 +253,7 @@ class ModelEstimator:
         step.measurements.append((H, y, R))
         z, P = updated
         for later in list(self.steps)[k + 1:]:
-            z, P = self._predict(z, P, later.attitude, later.tau, later.h)
+            z, P = self._predict(z, P, later.attitude, later.tau, later.h, later.F)
             for measurement in later.measurements:
                 z, P = _update(z, P, *measurement, gate=False)
             later.z, later.P = z, P
@@ -264,16 +270,19 @@ class ModelEstimator:
         kernel.state_derivative(self.model, x, self._tau, self._current, self._dx)
         return np.concatenate([self._dx[0:3], self._dx[6:9], np.zeros(5)])
 
-    def _predict(self, z: np.ndarray, P: np.ndarray, attitude: np.ndarray, tau: np.ndarray,
-                 h: float) -> tuple[np.ndarray, np.ndarray]:
-        """One Euler step of the model and its covariance (the Jacobian by central differences)."""
+    def _transition(self, z: np.ndarray, attitude: np.ndarray, tau: np.ndarray, h: float) -> np.ndarray:
+        """F = I + h df/dz at z: the position enters no derivative, the force enters the acceleration through
+        M^-1's translational block; the velocity's and the current's columns by forward differences."""
+        J = np.zeros((N, N))
+        J[3:6, 6:9] = self._force_to_acceleration
         f = self._derivative(z, attitude, tau)
-        J = np.empty((N, N))
-        for i in range(N):
-            d = np.zeros(N)
-            d[i] = 1e-4
-            J[:, i] = (self._derivative(z + d, attitude, tau) - self._derivative(z - d, attitude, tau)) / 2e-4
-        F = np.eye(N) + h * J
-        Q = np.diag([POSITION_NOISE ** 2] * 3 + [ACCEL_NOISE ** 2] * 3 + [FORCE_WALK ** 2] * 3
-                    + [CURRENT_WALK ** 2] * 2) * h
-        return z + h * f, F @ P @ F.T + Q
+        for i in (3, 4, 5, 9, 10):
+            d = z.copy()
+            d[i] += DIFFERENCE
+            J[:, i] = (self._derivative(d, attitude, tau) - f) / DIFFERENCE
+        return np.eye(N) + h * J
+
+    def _predict(self, z: np.ndarray, P: np.ndarray, attitude: np.ndarray, tau: np.ndarray, h: float,
+                 F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One Euler step of the model, and of the covariance through F."""
+        return z + h * self._derivative(z, attitude, tau), F @ P @ F.T + self._Q * h
