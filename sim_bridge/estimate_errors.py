@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.model.dynamics import jacobian
+from rov_mav.model.dynamics import body_velocity
 from rov_mav.model.navigation import Navigation
 from sim_bridge.estimator import Estimator
 from sim_bridge.sensors import Sensors
@@ -28,7 +28,7 @@ def estimate_errors(navigation: Navigation, seed: int, reference: np.ndarray, dt
     if navigation.ideal:
         return errors
     eta = reference[:, :6]
-    nu = np.linalg.solve(jacobian(eta), reference[:, 6:12, None])[..., 0]
+    nu = body_velocity(eta, reference[:, 6:12])
     sensors = Sensors(navigation, seed, eta[0], nu[0])
     estimator = Estimator(navigation, 0.0, eta[0], nu[0])
     for k in range(n):

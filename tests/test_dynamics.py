@@ -225,3 +225,12 @@ def test_free_motion_conserves_inertial_momentum_and_energy(vehicle):
     p1, e1 = momentum_and_energy(x)
     np.testing.assert_allclose(p1, p0, atol=1e-8)
     assert e1 == pytest.approx(e0, rel=1e-8)
+
+
+def test_body_velocity_is_the_jacobians_inverse():
+    """nu = body_velocity(eta, eta_dot) gives back eta_dot through Eq. 2.1, for poses away from theta = 90 deg."""
+    rng = np.random.default_rng(4)
+    eta = rng.uniform(-1.2, 1.2, (50, 6))
+    eta_dot = rng.normal(size=(50, 6))
+    nu = dynamics.body_velocity(eta, eta_dot)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", dynamics.jacobian(eta), nu), eta_dot, atol=1e-10)

@@ -34,6 +34,7 @@ from pymavlink import mavutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from link_faults import ROV_MAV, RUN_WAIT, Checker, free_port, runner_calling, stop  # noqa: E402
+from vehicle_faults import mission_start  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -114,23 +115,12 @@ def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path)
     if not metrics.exists():
         return {"code": runner.returncode, "output": output, "end": end}
     m = json.loads(metrics.read_text())
-    t0, duration = _mission_window(log / "ticks.csv")
+    t0, duration = mission_start(log / "ticks.csv"), m["duration_s"]
     return {"code": runner.returncode, "completed": m["completed"], "truth": m.get("rms_position_error_truth_m"),
             "truth_max": m.get("max_position_error_truth_m"), "estimate": m["rms_position_error_m"],
             "own": m.get("rms_estimate_error_truth_m"), "vehicle": m.get("rms_vehicle_estimate_error_truth_m"),
             "heading": m["rms_attitude_error_rad"], "rate": m["loop"]["control_rate_hz"],
             "activity": recorder.activity(t0, t0 + duration), "end": end, "output": output}
-
-
-def _mission_window(ticks: Path) -> tuple[float, float]:
-    """(vehicle time of the mission's start, mission s flown) from a run's ticks.csv."""
-    import csv
-    with ticks.open() as f:
-        rows = [(float(r["t"]), float(r["vehicle_time"])) for r in csv.DictReader(f)]
-    flown = [(t, v) for t, v in rows if t >= 0]
-    if not flown:
-        return math.nan, 0.0
-    return flown[0][1] - flown[0][0], flown[-1][0]
 
 
 def _mean(results: list[dict], key: str) -> float:

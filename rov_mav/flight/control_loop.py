@@ -83,7 +83,7 @@ class FlightLoop:
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3)
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         if controller is not None and io.options.estimator == MODEL:
-            io.own = OwnNavigation(controller.model)     # started from the first state the loop reads
+            io.own = OwnNavigation(controller.model)     # started by a navigation source's first measurement
         io.mission_time = self.mission_time
         io.watcher = self._watch
         io.on_neutral.append(self._neutral_sent)
@@ -281,15 +281,15 @@ class FlightLoop:
         age = io.session.clock.now() - state.t
         self._count_tick(state.t, latency, horizon, pwm)
         truth = io.truth.position if io.truth.t is not None and abs(io.truth.t - state.t) <= TRUTH_AGE else None
+        reported = state.reported if state.reported is not None else state.eta[:3]
         if t >= 0 and fresh:
             self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat,
-                            truth=truth if truth is not None else np.full(3, np.nan),
-                            reported=state.reported if state.reported is not None else state.eta[:3])
+                            truth=truth if truth is not None else np.full(3, np.nan), reported=reported)
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
                             progress=self.mission.progress(t), telemetry_age=age, latency=latency,
                             control_rate=len(self._ticks), battery_voltage=self.actuation.voltage, horizon=horizon,
-                            true_disturbance=self.true_disturbance, truth=truth, reported=state.reported)
+                            true_disturbance=self.true_disturbance, truth=truth, reported=reported)
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration

@@ -11,7 +11,7 @@ import numpy as np
 from rov_mav.flight.estimate_jumps import EstimateJumps
 from rov_mav.flight.run_options import RunOptions
 from rov_mav.flight.velocity_blend import VelocityBlend
-from rov_mav.model.dynamics import rotation
+from rov_mav.model.dynamics import body_velocity, rotation
 
 
 def as_the_run_sees(errors: np.ndarray, reference: np.ndarray, dt: float,
@@ -20,10 +20,11 @@ def as_the_run_sees(errors: np.ndarray, reference: np.ndarray, dt: float,
     (N+1, 18) -> the same errors after the run's shaping."""
     jumps, blend = EstimateJumps(), VelocityBlend(velocity_blend)
     shaped = np.empty_like(errors)
+    body = body_velocity(reference[:, :6], reference[:, 6:12])[:, :3]
     for k in range(errors.shape[0]):
         eta = reference[k, :6]
         r = rotation(eta)
-        nu = r.T @ reference[k, 6:9]            # the body velocity of the reference's NED rate (Eq. 2.2)
+        nu = body[k]
         position = eta[:3] + errors[k, :3]
         v_ned = r @ (nu + errors[k, 3:])
         seen = jumps.steady(k * dt, position, v_ned)

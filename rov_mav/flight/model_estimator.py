@@ -179,9 +179,9 @@ class ModelEstimator:
         return self.out[3:6].copy()
 
     @property
-    def force(self) -> np.ndarray:
-        """The unknown body force X_d, Y_d, Z_d (N)."""
-        return self.z[6:9].copy()
+    def sourced(self) -> bool:
+        """A navigation source has given a measurement (a fix or a DVL report fused)."""
+        return self.fused["fix"] + self.fused["dvl"] > 0
 
     def heard(self, t: float) -> None:
         """A navigation source spoke at vehicle time t (with a fix or without: a dropout is not a silence, and the
@@ -218,8 +218,7 @@ class ModelEstimator:
     def vehicle_position(self, t: float, north: float, east: float) -> bool:
         """The vehicle's own horizontal position, fused until a navigation source has given a measurement, and again
         once none has spoken for SOURCE_SILENCE s."""
-        sourced = self.fused["fix"] + self.fused["dvl"] > 0
-        if sourced and t - self.last_source < SOURCE_SILENCE:
+        if self.sourced and t - self.last_source < SOURCE_SILENCE:
             return False
         H = np.zeros((2, N))
         H[0, 0] = H[1, 1] = 1.0
@@ -228,8 +227,7 @@ class ModelEstimator:
     def _reset_due(self, arrival: float) -> bool:
         """The first fix (what came before was the vehicle's estimate, and the force learnt from it) and one after
         RESET_AFTER s of fixes refused in a row set the position, not the force or the current."""
-        first = self.fused["fix"] == 0 and self.fused["dvl"] == 0
-        return first or (self.refused_since is not None and arrival - self.refused_since >= RESET_AFTER)
+        return not self.sourced or (self.refused_since is not None and arrival - self.refused_since >= RESET_AFTER)
 
     def _fuse(self, t: float, H: np.ndarray, y: np.ndarray, R: np.ndarray, kind: str, reset: bool = False) -> bool:
         """Fuse y = H z + noise(R) at vehicle time t (a step's end at or before it), then step forward again."""

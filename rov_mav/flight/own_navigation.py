@@ -40,13 +40,13 @@ class OwnNavigation:
             self.started_by = "an acoustic fix (GPS_INPUT)" if fix else "a DVL report (VISION_POSITION_DELTA)"
         if not self.filter.started:
             return
-        if kind == "GPS_INPUT":
-            self.filter.heard(t)       # a source on the link, with a fix or in a dropout (then it is not replaced)
         if fix:
             north, east = north_east(msg.lat * 1e-7, msg.lon * 1e-7, origin)
             self.filter.fix(t, north, east, float(msg.horiz_accuracy))
         elif dvl:
             self.filter.dvl(t, np.array(msg.position_delta, dtype=float) / (msg.time_delta_usec * 1e-6))
+        elif kind == "GPS_INPUT":
+            self.filter.heard(t)       # a source on the link in a dropout: it speaks, and is not replaced
 
     def commanded(self, t_act: float, wrench: np.ndarray) -> None:
         self.filter.commanded(t_act, wrench)

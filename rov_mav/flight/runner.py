@@ -161,7 +161,8 @@ class Runner:
         log, loop = self.loop.log, self.loop.loop
         return RunResult(
             code=code, reason=reason, completed=completed, t=log.column("t"), eta=log.column("eta"),
-            eta_d=log.column("eta_d"), truth=log.column("truth"), reported=log.column("reported"), tau=log.column("tau"), tau_hat=log.column("tau_hat"),
+            eta_d=log.column("eta_d"), truth=log.column("truth"), reported=log.column("reported"),
+            tau=log.column("tau"), tau_hat=log.column("tau_hat"),
             latency_ms=loop.column("latency_ms"), tick_times=loop.column("tick_time"),
             horizon_ms=loop.column("horizon_ms"), pwm=loop.column("pwm"),
             round_trip_ms=self.round_trip_ms,

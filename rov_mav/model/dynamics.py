@@ -56,6 +56,11 @@ def jacobian(eta: np.ndarray) -> np.ndarray:
     return J
 
 
+def body_velocity(eta: np.ndarray, eta_dot: np.ndarray) -> np.ndarray:
+    """nu = J(eta)^-1 eta_dot (Eq. 2.1 solved for nu): the body velocity of a pose's rate; (..., 6) -> (..., 6)."""
+    return np.linalg.solve(jacobian(eta), np.asarray(eta_dot, dtype=float)[..., None])[..., 0]
+
+
 def jacobian_dot(eta: np.ndarray, eta_dot: np.ndarray) -> np.ndarray:
     """dJ/dt along eta_dot, from the analytic partial derivatives of R and T in phi, theta, psi."""
     eta = np.asarray(eta, dtype=float)

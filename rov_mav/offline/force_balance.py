@@ -44,7 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.signal import savgol_filter
 
-from rov_mav.model.dynamics import coriolis, jacobian, rotation
+from rov_mav.model.dynamics import body_velocity, coriolis, rotation
 from rov_mav.model.kernel import allocating
 from rov_mav.model.thrusters import NEUTRAL_PWM, ThrusterMap, allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
@@ -214,7 +214,7 @@ class Flights:
                 sent = np.maximum.accumulate(t + np.clip(run.age[piece], 0.0, GAP_FACTOR * period))
                 ref = run.reference[piece]
                 eta_d = ref[:, :6]
-                nu_d = np.linalg.solve(jacobian(eta_d), ref[:, 6:12, None])[..., 0]
+                nu_d = body_velocity(eta_d, ref[:, 6:12])
                 label = np.full(a.size, len(self.pieces))
                 measured.append(state_integrals(t, run.eta[piece], run.nu[piece], a, b, rigid, samples)
                                 | {"piece": label})

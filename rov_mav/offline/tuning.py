@@ -53,7 +53,7 @@ class Backend(Protocol):
 def feedforward(model: Vehicle, ref: np.ndarray) -> np.ndarray:
     """tau_ff: the law's wrench on the reference itself (e = e_dot = 0, tau_hat = 0, Eq. 2.17), (N+1, 6)."""
     eta = ref[:, :6]
-    nu = np.linalg.solve(dynamics.jacobian(eta), ref[:, 6:12, None])[..., 0]
+    nu = dynamics.body_velocity(eta, ref[:, 6:12])
     tau, _ = law.control_law(model, np.ones(6), np.ones(6), eta, nu, ref, np.zeros(6))
     return tau
 
