@@ -12,7 +12,6 @@ import time
 import numpy as np
 import pytest
 from run_helpers import (
-    SPEEDUP,
     armed,
     assert_left_safe,
     bridge_with_checker,
@@ -171,7 +170,7 @@ def test_a_reset_that_moves_the_estimate_a_metre_is_taken_in_at_a_flyable_pace_w
     within a fifth of the path's own before it (taken in at once, 12.9 N against the path's 8.4: measured), and
     flies on."""
     log = tmp_path / "log"
-    line, output = _flies_on_after(tmp_path, "navigation-reset=0.8/0.6", "the position estimate jumped", SPEEDUP,
+    line, output = _flies_on_after(tmp_path, "navigation-reset=0.8/0.6", "the position estimate jumped", 5.0,
                                    "--log", str(log), flown=15.0)
     assert "jumped 1.00 m" in line and "taken in at 0.1 m/s" in line, line
     ticks = np.genfromtxt(log / "ticks.csv", delimiter=",", names=True)
