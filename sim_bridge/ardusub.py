@@ -4,10 +4,12 @@ Pure: no I/O and no wall clock; every method takes the simulated time `t` in sec
 ground station (STATUSTEXT) is queued in `texts` for the caller to send.
 
 Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.md):
-- RC overrides only from the GCS sysid; they count as GCS heartbeats and as pilot input.
-- MANUAL_CONTROL (ArduSub 4.5, ArduSub/GCS_Mavlink.cpp): only from the GCS sysid and with `target` equal to this
-  vehicle's sysid (0 is not accepted); its axes become overrides of channels 1-11 (`joystick`) with the same expiry,
-  and it counts as pilot input and as a GCS heartbeat. Buttons are ignored (no arming, modes, lights or trims).
+- RC overrides only from a GCS sysid (`GCS::sysid_is_gcs`: MAV_GCS_SYSID, or on 4.7 the range up to
+  MAV_GCS_SYSID_HI, `Params.is_gcs`); they count as GCS heartbeats and as pilot input.
+- MANUAL_CONTROL (ArduSub/GCS_MAVLink_Sub.cpp, `GCS_MAVLINK_Sub::handle_message`): only from a GCS sysid and with
+  `target` equal to this vehicle's sysid (0 is not accepted); its axes become overrides of channels 1-11 on 4.5, 1-8
+  on 4.7 (`joystick`) with the same expiry, and it counts as pilot input and as a GCS heartbeat. Buttons are ignored
+  (no arming, modes, lights or trims).
 - The software safety switch (a mode change with base_mode 128, custom mode 1 on, 0 off): while on, every output reads
   0 and sends no pulse, armed or not (measured on ArduSub 4.5.3 SITL). A BlueROV2 boots with it off.
 - The vehicle's own sysid is fixed at boot (ArduPilot applies SYSID_THISMAV / MAV_SYSID on reboot: measured).
@@ -82,7 +84,7 @@ class ArduSub:
         self.joystick_gain = joystick.joystick_gain(params["JS_GAIN_DEFAULT"], params["JS_GAIN_MIN"],
                                                     params["JS_GAIN_MAX"], params["JS_GAIN_STEPS"])
         self._lights = (int(params["RC9_MIN"]), int(params["RC10_MIN"]))
-        self.rc = RCInput()
+        self.rc = RCInput(params.firmware)
         self.mode = MODES["MANUAL"]
         self.armed = False
         self.safety_on = False            # no safety switch on a BlueROV2: outputs flow from boot
@@ -115,13 +117,13 @@ class ArduSub:
     # -- inputs ----------------------------------------------------------------------------------------------
 
     def gcs_heartbeat(self, sysid: int, t: float) -> None:
-        """A HEARTBEAT from `sysid`: refreshes the GCS failsafe if it is the GCS sysid."""
-        if sysid == self.params.gcs_sysid:
+        """A HEARTBEAT from `sysid`: refreshes the GCS failsafe if it is a GCS sysid."""
+        if self.params.is_gcs(sysid):
             self._gcs_seen = t
 
     def rc_override(self, sysid: int, values: list[int], t: float) -> bool:
-        """RC_CHANNELS_OVERRIDE's 18 channel fields from `sysid`; False (ignored) unless it is the GCS sysid."""
-        if sysid != self.params.gcs_sysid:
+        """RC_CHANNELS_OVERRIDE's 18 channel fields from `sysid`; False (ignored) unless it is a GCS sysid."""
+        if not self.params.is_gcs(sysid):
             return False
         self.rc.apply_message(values, t)
         self._pilot_seen = t
@@ -129,12 +131,12 @@ class ArduSub:
         return True
 
     def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float) -> bool:
-        """MANUAL_CONTROL's (x, y, z, r, s, t) from `sysid` to `target`; False (ignored) unless from the GCS sysid
+        """MANUAL_CONTROL's (x, y, z, r, s, t) from `sysid` to `target`; False (ignored) unless from a GCS sysid
         and aimed at this vehicle."""
-        if sysid != self.params.gcs_sysid or target != self.sysid:
+        if not self.params.is_gcs(sysid) or target != self.sysid:
             return False
         values = joystick.rc_channels(*axes, gain=self.joystick_gain, throttle_gain=self.params["JS_THR_GAIN"],
-                                      lights=self._lights)
+                                      lights=self._lights, firmware=self.params.firmware)
         for ch, value in enumerate(values):
             self.rc.set_override(ch, value, t)
         self._pilot_seen = t

@@ -9,11 +9,12 @@ Two Kalman filters, run at the sensors' rates (the IMU's, 50 Hz by default, not 
 Delayed fusion as EKF3's (`NavEKF3_core::UpdateFilter`, `storedIMU`, `calcOutputStates`): the filter runs on a
 delayed time horizon, `horizon` behind now (the largest delay the EKF assumes for a source); each measurement is
 stamped with its arrival less the delay the EKF assumes for it and fused when the horizon reaches that stamp, in time
-order. The output is EKF3's output predictor (`NavEKF3_core::calcOutputStates`): a position and velocity carried
-to now with every IMU sample and kept in a history; at each step of the horizon the history's entry of the horizon's
-time is compared with the filter's state and a PI correction with the time constant EK3_TAU_OUTPUT (25 cs by default,
-`AP_NavEKF3.cpp`) is added to the whole history, so a fix's correction shows spread over ~0.25 s, not as a step. A
-reset moves the history with the state (`NavEKF3_core::ResetPositionNE`): that one is a step. A source whose real
+order; the output is the horizon's state predicted to now through the IMU samples since (EKF3's output predictor,
+here without its complementary-filter smoothing: a correction shows at once as a step). Not yet as ArduSub: EKF3
+spreads each correction over EK3_TAU_OUTPUT (25 cs; `NavEKF3_core::calcOutputStates`, a PI on the history of outputs;
+only a reset, `ResetPositionNE`, moves the output at once). Emulated, it made the run's thruster watch take a 10 cm
+fix correction spread over 0.3 s for a reversed thruster (square, ugps, seed 2, vehicle t 202 s), and the run's jump
+handling misses spread corrections: both must learn it before the stand-in follows EKF3 here. A source whose real
 latency exceeds the assumed delay is fused at the wrong time, and the estimate lags by the difference.
 Each innovation is gated as EKF3 does (5 standard deviations for position, velocity and height, 3 for the compass:
 EK3_POS_I_GATE, EK3_VEL_I_GATE, EK3_HGT_I_GATE, EK3_MAG_I_GATE defaults); the test ratios, innovation^2 /
@@ -37,7 +38,6 @@ RESET_AFTER = 5.0             # s of position fixes rejected in a row before a r
 INITIAL_POS_STD, INITIAL_VEL_STD = 0.1, 0.05      # m, m/s at initialisation (the start is known: chosen)
 HEADING_STD, BIAS_STD, BIAS_WALK = 0.05, 0.005, 1e-5   # rad, rad/s, rad/s per sqrt(s) (chosen)
 NIS_MEMORY = 4000
-TAU_OUTPUT = 0.25             # s: EK3_TAU_OUTPUT's default (25 cs), constrained to 0.1-0.5 s as EKF3 does
 
 
 def _wrap(a: float) -> float:
@@ -70,9 +70,6 @@ class Estimator:
         self._rejected_since: float | None = None
         self.resets = 0
         self.output = (np.concatenate((self.x[:3], np.asarray(eta[3:6], float))), np.asarray(nu, float).copy())
-        self._out = self.x.copy()                       # the output predictor's [position, velocity] (NED) now
-        self._out_history: deque = deque()              # its value at each IMU sample past the horizon
-        self._pos_integral, self._vel_integral = np.zeros(3), np.zeros(3)
         self._fq: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     # -- inputs ------------------------------------------------------------------------------------------------
@@ -98,34 +95,15 @@ class Estimator:
         self.roll, self.pitch = s.roll, s.pitch
         self._heading_predict(s)
         r = rot(self.roll, self.pitch, self.psi)
-        dv = r @ s.dv_body
-        self._buffer.append((s.t, s.dt, dv, self.roll, self.pitch, self.psi))
-        self._out[:3] += self._out[3:] * s.dt + 0.5 * dv * s.dt
-        self._out[3:] += dv
-        self._out_history.append(self._out.copy())
+        self._buffer.append((s.t, s.dt, r @ s.dv_body, self.roll, self.pitch, self.psi))
         self.rates = s.gyro - np.array([0.0, 0.0, self.bias])
-        self._fuse_due(self.t_h)
         while self._buffer and self._buffer[0][0] <= s.t - self.horizon + 1e-9:
-            t, dt, dv_h, *attitude = self._buffer.popleft()
-            self._predict(dt, dv_h)
-            self.t_h, self._attitude_h = t, tuple(attitude)
+            t, dt, dv, *attitude = self._buffer.popleft()
             self._fuse_due(self.t_h)
-            self._track(dt, self._out_history.popleft())
-        self.output = (np.array([*self._out[:3], self.roll, self.pitch, self.psi]),
-                       np.concatenate((r.T @ self._out[3:], self.rates)))
-
-    def _track(self, dt: float, delayed: np.ndarray) -> None:
-        """The output predictor's PI correction toward the filter's state at the horizon, added to its history and
-        to now (`calcOutputStates`: gain dt / tau, integral term gain^2 / 10)."""
-        gain = dt / min(max(TAU_OUTPUT, dt), 10.0)
-        pos_err, vel_err = self.x[:3] - delayed[:3], self.x[3:] - delayed[3:]
-        self._pos_integral += pos_err
-        self._vel_integral += vel_err
-        correction = np.concatenate((pos_err * gain + self._pos_integral * gain * gain * 0.1,
-                                     vel_err * gain + self._vel_integral * gain * gain * 0.1))
-        for entry in self._out_history:
-            entry += correction
-        self._out += correction
+            self._predict(dt, dv)
+            self.t_h, self._attitude_h = t, tuple(attitude)
+        self._fuse_due(self.t_h)
+        self._output(r)
 
     # -- heading -----------------------------------------------------------------------------------------------
 
@@ -199,7 +177,6 @@ class Estimator:
             else:
                 self._rejected_since = self._rejected_since if self._rejected_since is not None else self.t_h
                 if self.t_h - self._rejected_since >= RESET_AFTER:      # EKF3 gives up on its own estimate
-                    self._shift_output(z - self.x[idx])
                     self.x[idx] = z
                     self.P[idx, :] = 0.0
                     self.P[:, idx] = 0.0
@@ -218,11 +195,17 @@ class Estimator:
         if kind in ("vel", "pos"):
             self.aided_at = max(self.aided_at, item.arrival)
 
-    def _shift_output(self, north_east: np.ndarray) -> None:
-        """A position reset moves the output predictor's history and now with it (`ResetPositionNE`)."""
-        for entry in self._out_history:
-            entry[:2] += north_east
-        self._out[:2] += north_east
+    def _output(self, r_now: np.ndarray) -> None:
+        """The horizon's state predicted to now through the IMU samples since (mean only)."""
+        p, v = self.x[:3], self.x[3:]
+        if self._buffer:
+            dts = np.fromiter((b[1] for b in self._buffer), float, len(self._buffer))
+            dvs = np.array([b[2] for b in self._buffer])
+            after = np.cumsum(dts[::-1])[::-1] - dts          # time from the end of each sample to now
+            p = p + v * dts.sum() + ((0.5 * dts + after)[:, None] * dvs).sum(axis=0)
+            v = v + dvs.sum(axis=0)
+        eta = np.array([p[0], p[1], p[2], self.roll, self.pitch, self.psi])
+        self.output = (eta, np.concatenate((r_now.T @ v, self.rates)))
 
     # -- reports -----------------------------------------------------------------------------------------------
 

@@ -1,8 +1,11 @@
 """ArduSub's parameters that the bridge uses: names, defaults and MAVLink types, for firmware 4.5 or 4.7 naming.
 
 ArduSub 4.7 renamed SYSID_MYGCS -> MAV_GCS_SYSID, SYSID_THISMAV -> MAV_SYSID and the stream rates SRn_* (n from 0)
--> MAV{n+1}_*. `Params(firmware)` holds one of the two name sets; `Params.names` maps the roles the bridge reads
-to the names that firmware uses. SIM_* are the simulation's own settings (as in ArduPilot's SITL).
+-> MAV{n+1}_*, and SYSID_ENFORCE -> MAV_OPTIONS bit 0 (PR #29617, `GCS_MAVLink_Parameters.cpp`); it added
+MAV_GCS_SYSID_HI (PR #30627: every sysid from MAV_GCS_SYSID to it is a GCS, `GCS::sysid_is_gcs`) and MAVn_OPTIONS
+(bit 1: the link neither forwards nor is forwarded to, `sim_bridge.routing`; bit 2: REQUEST_DATA_STREAM ignored).
+`Params(firmware)` holds one of the two name sets; `Params.names` maps the roles the bridge reads to the names that
+firmware uses. SIM_* are the simulation's own settings (as in ArduPilot's SITL).
 
 Each value is also kept as stored (the flight controller's EEPROM): a PARAM_SET stores what it sets
 (GCS_Param.cpp, `handle_param_set` saves), a REQUEST_DATA_STREAM only sets the rate in RAM (`handle_request_data_stream`
@@ -23,6 +26,8 @@ _ROUNDING = f32(0.01)
 FIRMWARES = ("4.5", "4.7")
 DEFAULT_FIRMWARE = "4.7"
 CHANNELS = 4                                     # MAVLink channels (links) that have stream-rate parameters
+NO_FORWARD, NO_STREAM_OVERRIDE = 1 << 1, 1 << 2  # MAVn_OPTIONS bits (4.7, `GCS_MAVLINK::var_info`)
+GCS_SYSID_ENFORCE = 1 << 0                       # MAV_OPTIONS bit (4.7; SYSID_ENFORCE in 4.5)
 STREAM_GROUPS = ("RAW_SENS", "EXT_STAT", "RC_CHAN", "RAW_CTRL", "POSITION",
                  "EXTRA1", "EXTRA2", "EXTRA3", "PARAMS", "ADSB")
 # Stream rates in Hz: ATTITUDE 10, position 3, servo/status 2 as measured on ArduSub SITL; the rest chosen.
@@ -78,6 +83,8 @@ def _table(names: Names) -> list[Spec]:
     specs = [
         Spec(names.sysid, 1, INT16),
         Spec(names.gcs_sysid, 255, INT16),
+        *([Spec("MAV_GCS_SYSID_HI", 0, INT16), Spec("MAV_OPTIONS", 0, INT16)] if names.sysid == "MAV_SYSID"
+          else [Spec("SYSID_ENFORCE", 0, INT8)]),
         Spec("FRAME_CONFIG", 2, INT8),                 # vectored_6dof (BlueROV2 Heavy)
         Spec("MOT_PWM_MIN", 1100, INT16),
         Spec("MOT_PWM_MAX", 1900, INT16),
@@ -106,6 +113,8 @@ def _table(names: Names) -> list[Spec]:
     specs += _failsafe_table(names)
     for channel in range(CHANNELS):
         specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]
+        if names.sysid == "MAV_SYSID":
+            specs.append(Spec(f"{names.stream_prefix[channel]}OPTIONS", 0, INT16))
     specs += [
         Spec("SIM_SPEEDUP", 1.0, REAL32),
         Spec("SIM_BATT_VOLTAGE", 16.8, REAL32),
@@ -202,6 +211,24 @@ class Params:
     @property
     def sysid(self) -> int:
         return int(self._values[self.names.sysid])
+
+    def is_gcs(self, sysid: int) -> bool:
+        """`GCS::sysid_is_gcs`: the GCS sysid, or (4.7) any sysid up to MAV_GCS_SYSID_HI when that is above it."""
+        low, high = self.gcs_sysid, int(self._values.get("MAV_GCS_SYSID_HI", 0))
+        return low <= sysid <= high if high > low else sysid == low
+
+    @property
+    def gcs_only(self) -> bool:
+        """MAV_OPTIONS bit 0 (4.5: SYSID_ENFORCE): MAVLink taken only from GCS sysids (`GCS_MAVLINK::accept_packet`)."""
+        if "MAV_OPTIONS" in self._values:
+            return bool(int(self._values["MAV_OPTIONS"]) & GCS_SYSID_ENFORCE)
+        return bool(self._values.get("SYSID_ENFORCE", 0))
+
+    def link_options(self, channel: int) -> int:
+        """MAVn_OPTIONS of link `channel` (0 on 4.5, and on links past the last parameter set)."""
+        if channel >= CHANNELS:
+            return 0
+        return int(self._values.get(f"{self.names.stream_prefix[channel]}OPTIONS", 0))
 
     def stream_rate(self, channel: int, group: str) -> float:
         return self._values[self.names.stream(channel, group)]

@@ -22,7 +22,7 @@ from sim_bridge.ardusub import (
 )
 from sim_bridge.missions import MissionProtocol
 from sim_bridge.numeric import float_to_int, is_equal, is_zero, wrap
-from sim_bridge.params import STREAM_GROUPS, Params
+from sim_bridge.params import NO_STREAM_OVERRIDE, STREAM_GROUPS, Params
 from sim_bridge.schedule import Scheduler
 from sim_bridge.signing import ARMED_REFUSAL, VehicleSigning
 from sim_bridge.telemetry import ENCODER, Snapshot
@@ -53,9 +53,7 @@ class Protocol:
         self.reboot_requested = False          # by MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, for the bridge to act on
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
-        """Replies to one message received on link `channel` at sim time t."""
-        if not addressed_here(msg, self.vehicle.sysid):
-            return []
+        """Replies to one message received on link `channel` at sim time t (one routing kept for this vehicle)."""
         kind = msg.get_type()
         sysid = msg.get_srcSystem()
         if kind == "HEARTBEAT":
@@ -73,8 +71,8 @@ class Protocol:
             result = self._set_mode(msg.base_mode, msg.custom_mode)
             return [(ENCODER.command_ack_encode(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0, sysid,
                                                 msg.get_srcComponent()), False)]
-        elif kind == "PARAM_REQUEST_LIST":
-            return [(self._param_value(i), False) for i in range(len(self.params))]
+        elif kind == "PARAM_REQUEST_LIST":      # `handle_param_request_list` sends the banner first
+            return self._banner() + [(self._param_value(i), False) for i in range(len(self.params))]
         elif kind == "PARAM_REQUEST_READ":
             return self._param_read(msg)
         elif kind == "PARAM_SET":
@@ -126,6 +124,8 @@ class Protocol:
         elif cmd == mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:       # param6 becomes COMMAND_INT's int32 y
             y = msg.y if msg.get_type() == "COMMAND_INT" else float_to_int(msg.param6)
             result = self._reboot(msg.target_component, p1, p2, msg.param3, y)
+        elif cmd == mavlink.MAV_CMD_DO_SEND_BANNER:
+            result, after = MAV_RESULT_ACCEPTED, self._banner()
         elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             result, after = (self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) if is_equal(p1, 1.0)
                              else (MAV_RESULT_FAILED, []))
@@ -133,6 +133,10 @@ class Protocol:
             result = MAV_RESULT_UNSUPPORTED
         ack = ENCODER.command_ack_encode(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         return before + [(ack, False)] + after
+
+    def _banner(self) -> list[Reply]:
+        return [(ENCODER.statustext_encode(MAV_SEVERITY_INFO, text.encode()), False)
+                for text in telemetry.banner(self.params.firmware, int(self.params["FRAME_CONFIG"]))]
 
     def _reboot(self, target_component: int, p1: float, p2: float, p3: float, y: int) -> int:
         """`GCS_MAVLINK::handle_preflight_reboot`: DENIED for another component; the 42/24/71 test actions are not
@@ -228,9 +232,10 @@ class Protocol:
 
     def _request_data_stream(self, msg, channel: int, t: float) -> None:
         """`GCS_MAVLINK::handle_request_data_stream`: start_stop 1 sets the rate (uint16 read as int16), 0 sets 0,
-        anything else is ignored; stream 0 sets every group but PARAMS, unknown streams nothing. Not saved
+        anything else is ignored, as is every request on a link with MAVn_OPTIONS bit 2 (4.7); stream 0 sets every
+        group but PARAMS, unknown streams nothing. Not saved
         (`persist_streamrates()` is false for Sub): a reboot brings back the stored rates."""
-        if msg.start_stop not in (0, 1):
+        if msg.start_stop not in (0, 1) or self.params.link_options(channel) & NO_STREAM_OVERRIDE:
             return
         groups = tuple(g for g in STREAM_GROUPS if g != "PARAMS") if msg.req_stream_id == 0 else \
             schedule.DATA_STREAM_GROUPS.get(msg.req_stream_id, ())
@@ -253,16 +258,6 @@ class Protocol:
         body = struct.pack("<HBBBBBBI", (seq + 1) & 0xFFFF, session, reply, size, opcode, 0, 0, 0) + data
         return ENCODER.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
                                                      list(body.ljust(251, b"\0")))
-
-
-def addressed_here(msg, sysid: int, compid: int = 1) -> bool:
-    """Is `msg` for this autopilot (libraries/GCS_MAVLink/MAVLink_routing.cpp, `check_and_forward`)? Not if it is our
-    own (sysid, compid) looped back; else if its target system (MANUAL_CONTROL: `target`) is 0 or ours and its target
-    component 0 or ours; messages without targets are for everyone."""
-    if msg.get_srcSystem() == sysid and msg.get_srcComponent() == compid:
-        return False
-    target = msg.target if msg.get_type() == "MANUAL_CONTROL" else getattr(msg, "target_system", 0)
-    return target in (0, sysid) and getattr(msg, "target_component", 0) in (0, compid)
 
 
 def _param_name(raw) -> str:

@@ -23,10 +23,11 @@ UINT16_MAX = 65535
 class RCInput:
     """Channel values `radio_in` (16,) in us and their overrides; channel numbers here are 0-based."""
 
-    def __init__(self):
+    def __init__(self, firmware: str = "4.7"):
         self.radio_in = np.zeros(CHANNELS, dtype=np.int32)          # as uint16: what RC_CHANNELS reports
-        self.radio_in[:8] = 1500          # ArduSub starts its pilot and camera channels at neutral
-        self.radio_in[8:11] = 1100        # lights and video switch start low
+        self.radio_in[:8] = 1500          # ArduSub starts its pilot and camera channels at neutral (`Sub::init_rc_in`)
+        if firmware == "4.5":
+            self.radio_in[8:11] = 1100    # 4.5: lights and video switch start low; 4.7: never written, they read 0
         self._override = np.zeros(CHANNELS, dtype=np.int32)
         self._stamp = np.full(CHANNELS, -np.inf)   # sim time of each override, -inf = none
 

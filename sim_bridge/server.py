@@ -11,6 +11,9 @@ its TCP clients are disconnected (as a restarting SITL's); at its start a fresh 
 overrides, RC input and failsafes as at boot, no GCS seen, the stored parameters, no SET_MESSAGE_INTERVAL), a fresh
 EKF and battery monitor (mAh counted from 0), the stored mission, each link's sequence restarting under the stored
 sysid; the main loop then sends INFO "ArduPilot Ready".
+Every message received goes through ArduPilot's routing first (`sim_bridge.routing`, as `GCS_MAVLINK::packetReceived`
+calls `MAVLink_routing::check_and_forward`): forwarded unchanged to the links it belongs on, and handled here only if
+it is for this vehicle and, with MAV_OPTIONS bit 0, from a GCS sysid (`GCS_MAVLINK::accept_packet`).
 An exception while handling one received message is contained: counted in `handler_errors`, reported in one stderr
 line, and the loop goes on (the fuzz test requires the count to stay 0: this is the last net, not the fix).
 """
@@ -38,7 +41,8 @@ from sim_bridge.faults import LinkFaults
 from sim_bridge.link import Link, open_links
 from sim_bridge.missions import MissionProtocol
 from sim_bridge.pacing import Pacer
-from sim_bridge.params import Params
+from sim_bridge.params import NO_FORWARD, Params
+from sim_bridge.routing import Router
 from sim_bridge.physics import Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.schedule import GROUP_OF, Scheduler
@@ -222,6 +226,9 @@ class Bridge:
                                  self.signing)
         for link in self.links:
             link.restart(self.sub.sysid)
+        self.router = Router(self.sub.sysid)      # the routes are learnt again after each boot
+        # MAVn_OPTIONS is read at boot (`GCS_MAVLINK::init` makes a NO_FORWARD link private; reboot required)
+        self._private = {c for c in range(len(self.config.endpoints)) if self.params.link_options(c) & NO_FORWARD}
         self.schedulers = []
         self._next_sensors = 0.0
 
@@ -351,6 +358,7 @@ class Bridge:
 
     def _receive(self) -> None:
         uptime, running = self.uptime, self.boot.phase(self.steps) == boot.RUNNING
+        channels = [link.channel for link in self.links]
         for link, scheduler in zip(self.links, self.schedulers or [None] * len(self.links)):
             for msg in link.receive():
                 self.messages_received += 1
@@ -363,6 +371,11 @@ class Bridge:
                     self.message_types.add(msg.get_type())
                 if not running:
                     self.messages_ignored += 1
+                    continue
+                local, forward = self.router.route(link.channel, msg, channels, self._private)
+                for channel in forward:
+                    self.links[channel].write(msg.get_msgbuf())
+                if not local or not self._accepted(msg):
                     continue
                 try:
                     replies = self.protocol.handle(msg, link.channel, scheduler, uptime)
@@ -379,6 +392,13 @@ class Bridge:
                 if self.protocol.reboot_requested:   # the ACK is out: now the power goes
                     self._power_off()
                     running = False
+
+    def _accepted(self, msg) -> bool:
+        """`GCS_MAVLINK::accept_packet`: with MAV_OPTIONS bit 0 (4.5: SYSID_ENFORCE), only from a GCS sysid, the
+        vehicle's own sysid (its components), or RADIO / RADIO_STATUS."""
+        sysid = msg.get_srcSystem()
+        return not self.params.gcs_only or self.params.is_gcs(sysid) or sysid == self.sub.sysid or \
+            msg.get_type() in ("RADIO", "RADIO_STATUS")
 
     def _broadcast(self, msg) -> None:
         for link in self.links:

@@ -25,7 +25,8 @@ ENCODER = mavlink.MAVLink(None)
 EARTH_RADIUS = 6378137.0                 # m
 SURFACE_PRESSURE = 101325.0              # Pa
 WATER_TEMPERATURE = 15.0                 # deg C
-FIRMWARE_VERSION = {"4.5": (4, 5, 7), "4.7": (4, 7, 0)}
+FIRMWARE_VERSION = {"4.5": (4, 5, 7), "4.7": (4, 7, 2)}
+GIT_HASH = "00000000"          # flight_custom_version and the banner's hash: an emulator has no build to name
 SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
            | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
            | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
@@ -192,7 +193,17 @@ def system_time(s: Snapshot):
 def autopilot_version(s: Snapshot):
     major, minor, patch = FIRMWARE_VERSION[s.firmware]
     version = (major << 24) | (minor << 16) | (patch << 8) | mavlink.FIRMWARE_VERSION_TYPE_OFFICIAL
-    return ENCODER.autopilot_version_encode(CAPABILITIES, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0)
+    return ENCODER.autopilot_version_encode(CAPABILITIES, version, 0, 0, 0, list(GIT_HASH.encode()), [0] * 8,
+                                            [0] * 8, 0, 0, 0)
+
+
+def banner(firmware: str, frame_config: int) -> list[str]:
+    """The STATUSTEXTs (INFO) of `GCS_MAVLINK::send_banner`, as SITL sends them (no OS or board lines): the firmware
+    string (THISFIRMWARE " (" GIT_VERSION ")"), then Sub's frame (`GCS_MAVLINK_Sub::send_banner`,
+    `AP_Motors6DOF` frame strings: 1 VECTORED, 2 VECTORED_6DOF)."""
+    major, minor, patch = FIRMWARE_VERSION[firmware]
+    frame = {1: "VECTORED", 2: "VECTORED_6DOF"}.get(frame_config, "UNKNOWN")
+    return [f"ArduSub V{major}.{minor}.{patch} ({GIT_HASH})", f"Frame: {frame}"]
 
 
 def mission_current(s: Snapshot):

@@ -115,10 +115,11 @@ def checker(port: int, speedup: float = SPEEDUP) -> Gcs:
 
 
 def fresh(gcs: Gcs, kind: str):
-    """The next `kind` sent after everything already queued was dropped."""
+    """The next `kind` the vehicle (sysid 1) sent after everything already queued was dropped (other stations'
+    heartbeats reach this link too: the vehicle forwards them)."""
     while gcs.conn.recv_match(blocking=False) is not None:
         pass
-    return gcs.recv(kind)
+    return gcs.recv(kind, cond=lambda m: m.get_srcSystem() == 1)
 
 
 def servo_functions(gcs: Gcs) -> list[int]:

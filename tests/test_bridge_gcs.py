@@ -32,15 +32,18 @@ def free_port(kind: int = socket.SOCK_DGRAM) -> int:
 
 
 class BridgeThread:
-    """The bridge in-process (the embedded API), on a free udpin port; the same `port` as BridgeProcess."""
+    """The bridge in-process (the embedded API), on free udpin ports (`links` of them, `ports`; `port` the first, the
+    same as BridgeProcess's)."""
 
-    def __init__(self, speedup: float = 10.0, **config):
+    def __init__(self, speedup: float = 10.0, links: int = 1, **config):
         from sim_bridge.config import BridgeConfig
         from sim_bridge.server import Bridge
 
-        self.port = free_port()
+        self.ports = [free_port() for _ in range(links)]
+        self.port = self.ports[0]
         self.speedup = speedup
-        self.bridge = Bridge(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{self.port}",), speedup=speedup, **config))
+        self.bridge = Bridge(BridgeConfig(endpoints=tuple(f"udpin:127.0.0.1:{p}" for p in self.ports),
+                                          speedup=speedup, **config))
 
     def __enter__(self) -> "BridgeThread":
         self.bridge.start()

