@@ -17,6 +17,7 @@ from run_helpers import (
     assert_left_safe,
     bridge_with_checker,
     checker,
+    runner_against,
     servo_functions,
     servo_outputs,
     short_mission,
@@ -96,7 +97,9 @@ def test_another_stations_overrides_mid_run_hand_the_vehicle_over(tmp_path):
                 intruder.start_pump()
                 assert run.wait() == 3, run.output
         assert armed(gcs) and servo_functions(gcs) == list(range(33, 41))   # armed, on its motors
-    assert "another station took over the thrusters: station sysid 255 component 190" in run.output
+    stop = next(line for line in run.output.splitlines() if "stopping:" in line)
+    assert "station sysid 255 component 190" in stop and ("another station took over the thrusters" in stop or
+                                                          "a ground station appeared mid-run" in stop), stop
     assert _handover_time(run.output) <= HANDOVER_LIMIT
 
 
@@ -171,3 +174,30 @@ def test_with_motor_test_a_pilot_takeover_leaves_the_vehicle_disarmed_for_the_pi
         assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
     assert "pilot takeover: station sysid 255 component 190" in run.output
     assert "arm it again to drive" in run.output and _handover_time(run.output) <= HANDOVER_LIMIT
+
+
+def test_a_pilot_joining_mid_dive_on_another_link_of_the_vehicle_is_handed_the_vehicle(tmp_path):
+    """missions-like: a run flying; at mission t ~ 10 s a pilot station (sysid 255, component 190: the run's own
+    ids, so the vehicle forwards it nothing) on its own link of the vehicle, silent until then, sends MANUAL_CONTROL
+    x = 600 at 25 Hz. The run sees it only in what the vehicle reports (its joystick interleaved with our overrides in
+    SERVO_OUTPUT_RAW and RC_CHANNELS) and hands over (exit 3); without that it flew on (measured: 8 s, until
+    stopped)."""
+    speedup = 5.0
+    mission = short_mission(tmp_path, goto_x=30.0)
+    bridge, pilot_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=speedup)
+    with runner_against(bridge, mission) as run, bridge:
+        run.wait_for("armed in MANUAL")
+        run.wait_for("t    10.0 s", timeout=120.0)
+        pilot = Gcs(pilot_port, speedup, sysid=255, rate=25.0)
+        try:
+            pilot.joystick = (600, 0, 500, 0)
+            pilot.heartbeats = False                    # silent but for its joystick
+            pilot.start_pump()
+            assert run.wait() == 3, run.output
+        finally:
+            pilot.close()
+    stop = next(line for line in run.output.splitlines() if "stopping:" in line)
+    assert "not what this run sends" in stop, stop
+    assert _handover_time(run.output) <= HANDOVER_LIMIT
+    stopped = float(re.search(r"\[ *([0-9.]+)\] stopping", run.output).group(1))
+    assert 10.0 < stopped < 15.0, run.output     # from the status line at 10 s: the pilot's start, then the verdict

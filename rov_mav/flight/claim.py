@@ -16,13 +16,16 @@ from rov_mav.flight.stations import Sighting, Verdict, judge
 from rov_mav.flight.stream_rate import measure, too_slow
 from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
 
-SIDE_RATES = {"SYS_STATUS": 2.0, "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 2.0,   # vehicle Hz
-              "EKF_STATUS_REPORT": 5.0}      # a lost position stops the run at once, not at the link timeout
+SIDE_RATES = {"SYS_STATUS": 2.0, "EKF_STATUS_REPORT": 5.0,   # vehicle Hz; a lost position stops the run at once
+              "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 5.0}      # a pilot's joystick interleaved with our overrides
+# shows in about a quarter of these (25 Hz against our 50): two of them within FOREIGN_WINDOW (`OverrideEcho`).
+# Faster streams would see it sooner, but at the test rig's 10x they cost the loop its rate (measured: tilt stops).
 RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
 OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
 OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
 ROLE_SYSIDS = range(254, 200, -1)   # sysids to take the GCS role with, when a pilot's joystick holds the GCS sysid
 DRY_RUN_SYSID = 254              # a dry run's own sysid: anything but the vehicle's GCS sysid
+GCS_SYSID_HIGH = "MAV_GCS_SYSID_HI"   # ArduSub 4.7: the top of a range of GCS sysids (0: none)
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
 
 
@@ -144,6 +147,8 @@ class VehicleClaim:
                    "warning")
             return
         name, value, ptype = found
+        if name == "MAV_GCS_SYSID":                 # 4.7 and later
+            self._single_gcs_sysid(value)
         if o.dry_run:
             # Heartbeats from the GCS sysid would hide a lost link from the pilot's own ground station (and ArduSub
             # would count them for its GCS failsafe): a dry run, which sends no override, speaks as another sysid.
@@ -171,6 +176,26 @@ class VehicleClaim:
                "vehicle to it" if pilots else "")
         io.say(f"took the GCS role for this run: speaking as sysid {own}, {name} = {own} (was {value}; restored "
                f"when the run ends){why}")
+
+    def _single_gcs_sysid(self, low: int) -> None:
+        """ArduSub 4.7's MAV_GCS_SYSID_HI above MAV_GCS_SYSID makes every sysid between them a GCS
+        (`GCS::sysid_is_gcs`): any station in the range could drive the thrusters through our passthrough unnoticed.
+        The run sets it to 0 (one GCS sysid) and restores it on every exit, after the outputs are back on their
+        motors; a dry run only says so."""
+        io, s = self.io, self.io.session
+        found = s.get_params([GCS_SYSID_HIGH])
+        if GCS_SYSID_HIGH not in found or int(found[GCS_SYSID_HIGH][0]) <= low:
+            return
+        high, ptype = int(found[GCS_SYSID_HIGH][0]), found[GCS_SYSID_HIGH][1]
+        if io.options.dry_run:
+            io.say(f"{GCS_SYSID_HIGH} = {high}: every sysid from {low} to {high} is a GCS the vehicle obeys (a run "
+                   "sets it to 0 while it flies)", "warning")
+            return
+        if not s.set_param(GCS_SYSID_HIGH, 0, ptype):
+            raise Abort(f"the vehicle did not confirm {GCS_SYSID_HIGH} = 0")
+        io.changes.gcs_high = (high, ptype)
+        io.say(f"{GCS_SYSID_HIGH} = 0 for this run (was {high}: stations with sysids {low}-{high} could drive the "
+               "thrusters; restored when the run ends)")
 
     def _wait_for_state(self) -> None:
         """Until ATTITUDE and LOCAL_POSITION_NED have both arrived, with progress messages and a timeout."""

@@ -184,10 +184,6 @@ class FlightLoop:
                     raise VehicleFailsafe("the vehicle entered SURFACE (a failsafe's action, or a pilot): left to "
                                           "it", now, EXIT_FAILSAFE)
                 raise HandOver(f"the vehicle's mode was changed to {mode} by someone else", now)
-        elif kind == "RC_CHANNELS" and s.echo.report([getattr(msg, f"chan{i}_raw") for i in range(1, CHANNELS + 1)]):
-            raise HandOver("the vehicle's RC input is not what this run sends (RC_CHANNELS "
-                           f"{[getattr(msg, f'chan{i}_raw') for i in range(1, CHANNELS + 1)]}): another station is "
-                           "writing it", now)
         stations = s.stations
         if moving := stations.pilots_moving(since):
             raise HandOver(f"pilot takeover: {moving[0].describe()}", moving[0].deflected_at, moving[0])
@@ -198,6 +194,18 @@ class FlightLoop:
             raise HandOver(f"a pilot station on our GCS sysid started sending MANUAL_CONTROL, which ArduSub "
                            f"writes over our thrusters: {joysticks[0].describe()}", joysticks[0].last_drive,
                            joysticks[0])
+        if joined := stations.joined(since, {s.sysid}):
+            raise HandOver(f"a ground station appeared mid-run on our GCS sysid {s.sysid} (ArduSub writes its "
+                           f"joystick over our thrusters): {joined[0].describe()}",
+                           joined[0].first_seen, joined[0])
+        # what the vehicle reports: someone on another link (whose messages we never see) writing its RC input
+        if kind == "RC_CHANNELS" and s.echo.rc(now, rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
+            raise HandOver(f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another "
+                           "station is writing it", now)
+        if kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides and \
+                s.echo.servo(now, out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
+            raise HandOver(f"the thrusters' outputs are not what this run sends (SERVO_OUTPUT_RAW {out}): another "
+                           "station is writing the RC input they pass through", now)
 
     def _watch_vehicle(self, msg, kind: str, now: float) -> None:
         """The vehicle's own trouble: a reboot (its clock went back, or it reports booting), a failsafe it announces,

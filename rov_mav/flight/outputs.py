@@ -31,6 +31,8 @@ MOTOR_TEST_START = 13.0          # vehicle s for the first DO_MOTOR_TEST to be a
 class Passthrough:
     """--output thrusters: RC overrides on RCIN passthrough."""
 
+    outputs_echo_overrides = True    # SERVO_OUTPUT_RAW shows the RC input: our overrides, or a stranger's
+
     def __init__(self, io: RunIO):
         self.io = io
 
@@ -126,6 +128,8 @@ class Passthrough:
 class MotorTest(Passthrough):
     """--output motor-test: ArduSub's motor test, the outputs left on their motors."""
 
+    outputs_echo_overrides = False
+
     def _switch(self) -> None:
         """MANUAL, armed, then the motor test held at neutral until the vehicle accepts it: the outputs stay on their
         motors, the neutral overrides held as pilot input (ArduSub's pilot-input failsafe disarms without it)."""
@@ -172,6 +176,8 @@ class MotorTest(Passthrough):
 
 class Guided(Passthrough):
     """--controller ardusub-guided: ArduSub's own position controller in GUIDED, the outputs on their motors."""
+
+    outputs_echo_overrides = False
 
     def __init__(self, io: RunIO, stream: GuidedStream):
         super().__init__(io)

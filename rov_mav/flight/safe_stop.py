@@ -64,9 +64,7 @@ class SafeStop:
             self.handover is not None, self.unconfirmed)) or []
         # The motors first, then the GCS sysid: a pilot's joystick must never reach an output on passthrough.
         self.report += self._restore(changes.restore_values())
-        if changes.gcs is not None:
-            name, value, ptype = changes.gcs
-            self.report += self._restore({name: (float(value), ptype)})
+        self.report += self._restore(changes.gcs_values())
         if self.handover is not None:
             self.report.append(self._handover_note())
         streams = self._attempt("message rates", lambda: self._reset_streams(alive=True))
@@ -105,11 +103,11 @@ class SafeStop:
         reads its RC input), leaving the flight command in place. Neutral stays the last word."""
         s, changes = self.io.session, self.io.changes
         self._attempt("disarm", lambda: s.fire(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0.0))
-        pending = changes.functions + ([changes.gcs[0]] if changes.gcs is not None else [])
+        pending = changes.functions + list(changes.gcs_values())
         self.unconfirmed += (["disarm"] if changes.armed else []) + (
             ["restore " + ", ".join(pending)] if pending else [])
-        gcs_note = (f" Set {changes.gcs[0]} back to {changes.gcs[1]} when the link is back."
-                    if changes.gcs is not None else "")
+        gcs_note = "".join(f" Set {name} back to {int(value)} when the link is back."
+                           for name, (value, _) in changes.gcs_values().items())
         return ["disarm: sent, no answer",
                 self.output.link_gone(self.last_command or [NEUTRAL] * CHANNELS, gcs_note)]
 

@@ -3,10 +3,13 @@ whether the vehicle is free, abandoned or someone else's, and by which it notice
 is driving.
 
 On a real BlueROV2 the pilot's QGroundControl or Cockpit is connected the whole dive (as GCS sysid 255), sending
-heartbeats and, with a joystick, MANUAL_CONTROL at about 25 Hz. ArduSub 4.5 (ArduSub/GCS_Mavlink.cpp, MANUAL_CONTROL
-and RC_CHANNELS_OVERRIDE handling) applies both only from its GCS sysid, and `Sub::transform_manual_control_to_rc_
-override` (ArduSub/joystick.cpp) writes them over RC channels 1-11 - the eight thrusters on RCIN passthrough.
+heartbeats and, with a joystick, MANUAL_CONTROL at about 25 Hz. ArduSub (GCS_MAVLink_Sub.cpp, MANUAL_CONTROL and
+RC_CHANNELS_OVERRIDE handling) applies both only from a GCS sysid, and `Sub::transform_manual_control_to_rc_override`
+(ArduSub/joystick.cpp) writes them over RC channels 1-8 (4.5: 1-11) - the eight thrusters on RCIN passthrough.
 MAV_CMD_DO_MOTOR_TEST it takes from any sysid (ArduSub/motors.cpp): a station sending it drives the thrusters too.
+A station on another link of the vehicle is seen only as ArduPilot's routing shows it (`MAVLink_routing.cpp`): its
+HEARTBEAT (unless it shares our sysid and component), never what it sends the vehicle; what it writes shows in the
+vehicle's RC_CHANNELS and SERVO_OUTPUT_RAW, interleaved with our overrides (`OverrideEcho`).
 Pure: no I/O; times are vehicle seconds.
 """
 
@@ -22,9 +25,11 @@ Z_REST = 500                 # MANUAL_CONTROL z (throttle) at rest, 0..1000 in A
 RC_STEADY = 3                # us: RC input samples further apart than this mean someone is writing it
 ECHO_TOLERANCE = 1           # us between an override we sent and the RC input the vehicle reports
 ECHO_MEMORY = 512            # overrides remembered (>= 5 vehicle s at 50 Hz plus the held resends)
-ECHO_MISSES = 2              # consecutive RC_CHANNELS reports unlike anything we sent: someone else writes RC
+FOREIGN_REPORTS = 2          # RC_CHANNELS / SERVO_OUTPUT_RAW reports unlike anything we sent ...
+FOREIGN_WINDOW = 1.0         # ... within this many vehicle s: someone else writes the RC input
 UINT16_MAX = 65535
 DO_MOTOR_TEST = 209          # MAV_CMD_DO_MOTOR_TEST
+MAV_TYPE_GCS = 6
 
 
 @dataclass
@@ -33,6 +38,8 @@ class Station:
 
     sysid: int
     compid: int
+    first_seen: float = 0.0              # vehicle s
+    ground_station: bool = False         # its HEARTBEAT says MAV_TYPE_GCS
     heartbeats: int = 0
     manual_control: int = 0
     overrides: int = 0
@@ -81,9 +88,10 @@ class StationWatch:
         if kind not in ("HEARTBEAT", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE", "COMMAND_LONG", "COMMAND_INT"):
             return
         key = (msg.get_srcSystem(), msg.get_srcComponent())
-        station = self.stations.setdefault(key, Station(*key))
+        station = self.stations.setdefault(key, Station(*key, first_seen=t))
         if kind == "HEARTBEAT":
             station.heartbeats += 1
+            station.ground_station = station.ground_station or msg.type == MAV_TYPE_GCS
         elif kind == "MANUAL_CONTROL" and msg.target == self.vehicle_sysid:
             station.manual_control += 1
             station.last_drive = t
@@ -114,6 +122,12 @@ class StationWatch:
     def joysticks(self, since: float, sysid: int | None = None) -> list[Station]:
         """Stations sending MANUAL_CONTROL since `since` (from `sysid` only, if given)."""
         return [s for s in self.drivers(since) if s.manual_control and (sysid is None or s.sysid == sysid)]
+
+    def joined(self, since: float, gcs_sysids: set[int]) -> list[Station]:
+        """Ground stations first heard after `since` (a heartbeat the vehicle forwards from another link) on a sysid
+        the vehicle takes as its GCS: their joystick would drive the thrusters."""
+        return [s for s in self.stations.values()
+                if s.first_seen > since and s.ground_station and s.sysid in gcs_sysids]
 
     def sysids(self) -> set[int]:
         return {sysid for sysid, _ in self.stations}
@@ -163,23 +177,41 @@ def judge(sighting: Sighting, watch: StationWatch, force: bool) -> Verdict:
 
 
 class OverrideEcho:
-    """Does the vehicle's RC input (RC_CHANNELS) show what this run sends? Keeps the last ECHO_MEMORY overrides.
+    """Does the vehicle show what this run sends? Keeps the last ECHO_MEMORY overrides (channels 1-8).
 
-    Matched by value, not by time: a report is ours when it equals any recent override. Timestamps would compare
-    the vehicle's time_boot_ms with our estimate of it at sending, which runs ahead whenever the vehicle stalls (a
-    loaded machine), and so would take our own command for a stranger's."""
+    A report is ours when channels 1-8 equal any recent override (by value, not by time: timestamps would compare the
+    vehicle's time_boot_ms with our estimate of it at sending, which runs ahead whenever the vehicle stalls, and so
+    would take our own command for a stranger's) and, for RC_CHANNELS, channels 9-16 are as they were when the run
+    began (it never writes them: a pilot's buttons or another station's override would). A pilot's joystick
+    interleaves with our overrides (ArduSub keeps whichever came last), so its values show in some reports, not all:
+    FOREIGN_REPORTS unlike ours within FOREIGN_WINDOW vehicle s, from RC_CHANNELS and (passthrough outputs show the
+    RC input) SERVO_OUTPUT_RAW together, are someone else writing."""
 
     def __init__(self, capacity: int = ECHO_MEMORY):
         self.sent: deque[np.ndarray] = deque(maxlen=capacity)
-        self.misses = 0
+        self.foreign: deque[float] = deque()
+        self._upper: np.ndarray | None = None       # RC 9-16 as the run found them
 
     def sent_now(self, pwm) -> None:
         self.sent.append(np.asarray(pwm[:8], dtype=float))
 
-    def report(self, rc: list[int]) -> bool:
-        """An RC_CHANNELS report (ch1-8); True once ECHO_MISSES reports in a row matched none of the overrides
-        remembered."""
-        row = np.asarray(rc, dtype=float)
-        ours = any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for pwm in self.sent)
-        self.misses = 0 if ours else self.misses + 1
-        return self.misses >= ECHO_MISSES
+    def rc(self, t: float, channels: list[int]) -> bool:
+        """An RC_CHANNELS report (channels 1-16) at vehicle time t; True when someone else is writing."""
+        row = np.asarray(channels, dtype=float)
+        if self._upper is None:
+            self._upper = row[8:16].copy()
+        return self._report(t, self._ours(row[:8]) and np.array_equal(row[8:16], self._upper))
+
+    def servo(self, t: float, outputs: list[int]) -> bool:
+        """A SERVO_OUTPUT_RAW report (outputs 1-8 on RCIN passthrough) at vehicle time t; True as `rc`."""
+        return self._report(t, self._ours(np.asarray(outputs, dtype=float)))
+
+    def _ours(self, row: np.ndarray) -> bool:
+        return not self.sent or any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for pwm in self.sent)
+
+    def _report(self, t: float, ours: bool) -> bool:
+        if not ours:
+            self.foreign.append(t)
+        while self.foreign and self.foreign[0] < t - FOREIGN_WINDOW:
+            self.foreign.popleft()
+        return len(self.foreign) >= FOREIGN_REPORTS
