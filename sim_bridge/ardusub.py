@@ -98,7 +98,7 @@ class ArduSub:
         self._routing_version = -1
         self._mix_key: tuple | None = None
         self.holds = Holds()
-        self.guided = Guided()
+        self.guided = Guided(accel_targets=params.firmware == "4.7")
         self._state: tuple[np.ndarray, np.ndarray] | None = None   # the last estimate `update` was given
         self._held: np.ndarray | None = None          # motor PWM from the assisted modes' holds, this pass
         self.motor_testing = False
@@ -268,12 +268,13 @@ class ArduSub:
             return
         self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), *self._pwm_range())
 
-    def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float) -> bool:
+    def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float,
+                        acceleration=(0.0, 0.0, 0.0)) -> bool:
         """SET_POSITION_TARGET_LOCAL_NED's fields: a GUIDED target (`sim_bridge.guided`); False (ignored) outside
         GUIDED or when ArduSub would ignore it."""
         if self.mode != MODES["GUIDED"]:
             return False
-        return self.guided.target(frame, type_mask, position, velocity, yaw, self._state, t)
+        return self.guided.target(frame, type_mask, position, velocity, yaw, self._state, t, acceleration)
 
     def _pilot_input_check(self, t: float) -> None:
         if self.params["FS_PILOT_INPUT"] == 0:

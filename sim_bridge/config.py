@@ -35,3 +35,4 @@ class BridgeConfig:
     params: dict[str, float] = field(default_factory=dict)
     signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key
     navigation: Navigation | None = None              # None: the environment's, else ideal (rov_mav/model/navigation.py)
+    log_dir: str | None = None                        # the vehicle's own DataFlash logs (sim_bridge/onboard_log.py)

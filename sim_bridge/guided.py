@@ -1,4 +1,5 @@
-"""ArduSub 4.5's GUIDED mode on the built-in vehicle: position targets in, the mixer's six axes out.
+"""ArduSub's GUIDED mode on the built-in vehicle (4.5, and 4.7.2's acceleration targets): position targets in, the
+mixer's six axes out.
 
 Mirrored from ArduPilot's source (ArduSub 4.5):
 - ArduSub/GCS_Mavlink.cpp, `GCS_MAVLINK_Sub::handle_message`, SET_POSITION_TARGET_LOCAL_NED: acted on only in GUIDED;
@@ -12,6 +13,11 @@ Mirrored from ArduPilot's source (ArduSub 4.5):
   `guided_posvel_control_run`: disarmed, nothing runs and the controllers restart; armed, the position target
   advances by the velocity target every loop, and after GUIDED_POSVEL_TIMEOUT_MS (3 s) without a new target the
   velocity target is zeroed, so the vehicle holds the last position target: no disarm, no mode change.
+- ArduSub 4.7.2 (PR #33609, backported by #34298: Guided_PosVel became Guided_PosVelAccel): position + velocity +
+  acceleration is accepted, the acceleration fed forward into the position controller and carried with the targets
+  (the velocity target advances by it as the position target by the velocity); it is used only with both position and
+  velocity, every other combination still needs the acceleration ignored. At the 3 s timeout the acceleration target
+  is zeroed with the velocity (chosen: the PR's review leaves it open; the vehicle comes to a stop either way).
 - libraries/AC_AttitudeControl/AC_PosControl.cpp, `update_xy_controller`: position error -> `sqrt_controller`
   (PSC_POSXY_P, limited by WPNAV_SPEED and WPNAV_ACCEL) + the velocity target (feed-forward) -> velocity PID
   (PSC_VELXY_P/I/D/IMAX, error and derivative filtered at FLTE/FLTD) -> acceleration, limited by ANGLE_MAX ->
@@ -101,13 +107,15 @@ class Guided:
     """The GUIDED mode's target and controllers. `target(...)` takes a SET_POSITION_TARGET_LOCAL_NED, `axes(...)` is
     one main-loop pass; `reset()` when the mode is entered or the vehicle disarmed."""
 
-    def __init__(self):
+    def __init__(self, accel_targets: bool = False):
+        self.accel_targets = accel_targets          # 4.7.2: Guided_PosVelAccel
         self.reset()
 
     def reset(self) -> None:
         """Hold where the vehicle is at the next pass (its position, depth and heading)."""
         self.position: np.ndarray | None = None     # NED m, the position target
         self.velocity = np.zeros(3)                 # NED m/s
+        self.acceleration = np.zeros(3)             # NED m/s/s (4.7.2)
         self.heading: float | None = None           # rad, the commanded heading
         self.heading_target: float | None = None    # rad, the slewed heading flown
         self.updated = -math.inf                    # s, when the last target came
@@ -116,13 +124,15 @@ class Guided:
         self.rates = (Pid(), Pid(), Pid())
         self._climb: float | None = None            # cm/s, last measured climb rate
 
-    def target(self, frame: int, type_mask: int, position, velocity, yaw: float, state, t: float) -> bool:
-        """A SET_POSITION_TARGET_LOCAL_NED's fields (NED m, m/s, rad) with the vehicle's (eta, nu); False when
+    def target(self, frame: int, type_mask: int, position, velocity, yaw: float, state, t: float,
+               acceleration=(0.0, 0.0, 0.0)) -> bool:
+        """A SET_POSITION_TARGET_LOCAL_NED's fields (NED m, m/s, m/s/s, rad) with the vehicle's (eta, nu); False when
         ArduSub would ignore it (frame or type_mask)."""
         if frame not in FRAMES or state is None:
             return False
         use_pos, use_vel = not type_mask & POS_IGNORE, not type_mask & VEL_IGNORE
-        if not type_mask & ACC_IGNORE or not (use_pos or use_vel):
+        use_acc = not type_mask & ACC_IGNORE
+        if use_acc and not (self.accel_targets and use_pos and use_vel) or not (use_pos or use_vel):
             return False
         eta = state[0]
         c, s = math.cos(eta[5]), math.sin(eta[5])
@@ -138,6 +148,7 @@ class Guided:
         elif self.position is None:
             self.position = np.array(eta[:3], dtype=float)
         self.velocity = rotated(velocity) if use_vel else np.zeros(3)
+        self.acceleration = rotated(acceleration) if use_acc else np.zeros(3)
         if not type_mask & YAW_IGNORE:
             self.heading = float(wrap_angle(yaw + (eta[5] if frame == FRAME_BODY_OFFSET_NED else 0.0)))
         self.updated = t
@@ -151,7 +162,9 @@ class Guided:
             self.heading = float(eta[5])
         if t - self.updated > POSVEL_TIMEOUT:
             self.velocity = np.zeros(3)
-        self.position = self.position + self.velocity * dt
+            self.acceleration = np.zeros(3)
+        self.position = self.position + self.velocity * dt + 0.5 * self.acceleration * dt * dt
+        self.velocity = self.velocity + self.acceleration * dt
         v_ned = rotation(eta) @ np.asarray(nu[:3], dtype=float)
         forward, lateral = self._horizontal(params, eta, v_ned, dt)
         throttle = self._vertical(params, eta, v_ned, dt)
@@ -169,7 +182,7 @@ class Guided:
         vel_error = vel_target - v_ned[:2] * 100.0
         accel = np.array([pid.update(e, dt, p["PSC_VELXY_P"], p["PSC_VELXY_I"], p["PSC_VELXY_D"],
                                      p["PSC_VELXY_IMAX"], p["PSC_VELXY_FLTE"], p["PSC_VELXY_FLTD"])
-                          for pid, e in zip(self.vel_xy, vel_error)])
+                          for pid, e in zip(self.vel_xy, vel_error)]) + self.acceleration[:2] * 100.0
         angle_max = math.radians(p["ANGLE_MAX"] / 100.0)
         accel_max = GRAVITY_CMSS * math.tan(angle_max)
         norm = float(np.hypot(*accel))
@@ -189,7 +202,7 @@ class Guided:
         climb = sqrt_controller(error, p["PSC_POSZ_P"], accel_up, dt)
         climb = min(max(climb, -p["WPNAV_SPEED_DN"]), p["WPNAV_SPEED_UP"]) - self.velocity[2] * 100.0
         measured = -v_ned[2] * 100.0
-        accel_target = p["PSC_VELZ_P"] * (climb - measured)
+        accel_target = p["PSC_VELZ_P"] * (climb - measured) - self.acceleration[2] * 100.0
         accel_measured = 0.0 if self._climb is None or dt <= 0 else (measured - self._climb) / dt
         self._climb = measured
         thrust = self.accel_z.update(accel_target - accel_measured, dt, p["PSC_ACCZ_P"], p["PSC_ACCZ_I"],

@@ -107,6 +107,8 @@ def _table(names: Names) -> list[Spec]:
         Spec("FS_PILOT_INPUT", 2, INT8),
         Spec("FS_PILOT_TIMEOUT", 3.0, REAL32),
         Spec("BATT_CAPACITY", 18000, INT32),
+        Spec("LOG_DISARMED", 0, INT8),                 # the on-board log (`sim_bridge.onboard_log`): 0 from arming
+        Spec("LOG_FILE_DSRMROT", 0, INT8),             # 1: a new file after each disarm
         Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run
     ]
     specs += [Spec(name, value, REAL32) for name, value in GUIDED_DEFAULTS.items()]

@@ -51,6 +51,7 @@ class Protocol:
         self.on_params_changed = on_params_changed
         self.signing = signing
         self.reboot_requested = False          # by MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, for the bridge to act on
+        self.on_param_set: Callable[[str, float, float], None] | None = None   # (name, stored value, t)
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
         """Replies to one message received on link `channel` at sim time t (one routing kept for this vehicle)."""
@@ -64,7 +65,7 @@ class Protocol:
             self.vehicle.manual_control(sysid, msg.target, (msg.x, msg.y, msg.z, msg.r, msg.s, msg.t), t)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
             self.vehicle.position_target(msg.coordinate_frame, msg.type_mask, (msg.x, msg.y, msg.z),
-                                         (msg.vx, msg.vy, msg.vz), msg.yaw, t)
+                                         (msg.vx, msg.vy, msg.vz), msg.yaw, t, (msg.afx, msg.afy, msg.afz))
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg, scheduler, t)
         elif kind == "SET_MODE":
@@ -225,9 +226,11 @@ class Protocol:
 
     def _param_set(self, msg, t: float) -> list[Reply]:
         name = _param_name(msg.param_id)
-        if self.params.set(name, msg.param_value) is None:
+        if (stored := self.params.set(name, msg.param_value)) is None:
             return []
         self.on_params_changed(t)
+        if self.on_param_set is not None:
+            self.on_param_set(name, stored, t)
         return [(self._param_value(self.params.index(name), reported_index=UINT16_MAX), True)]
 
     def _request_data_stream(self, msg, channel: int, t: float) -> None:

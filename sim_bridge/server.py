@@ -40,6 +40,7 @@ from sim_bridge.avionics import Avionics
 from sim_bridge.faults import LinkFaults
 from sim_bridge.link import Link, open_links
 from sim_bridge.missions import MissionProtocol
+from sim_bridge.onboard_log import OnboardLog
 from sim_bridge.pacing import Pacer
 from sim_bridge.params import NO_FORWARD, Params
 from sim_bridge.routing import Router
@@ -92,6 +93,7 @@ class Bridge:
         self.signing = VehicleSigning(config.signing_key, time.time())
         self.missions = MissionProtocol(lambda: config.origin)
         self.boot = boot.Boot(config.step)
+        self.onboard_log = OnboardLog(config.log_dir) if config.log_dir else None
         self.links: list[Link] = []
         self.schedulers: list[Scheduler] = []
         self.steps = 0
@@ -131,6 +133,8 @@ class Bridge:
     def close(self) -> None:
         for link in self.links:
             link.close()
+        if self.onboard_log is not None:
+            self.onboard_log.close()
 
     def run(self) -> None:
         """Run until `request_stop()` (blocking; e.g. from a signal handler), opening the links if not yet open."""
@@ -224,6 +228,8 @@ class Bridge:
         self.missions.items = stored
         self.protocol = Protocol(self.sub, self.params, self.snapshot, self._params_changed, self.missions,
                                  self.signing)
+        if self.onboard_log is not None:
+            self.protocol.on_param_set = lambda name, value, t: self.onboard_log.parameter(t, name, value)
         for link in self.links:
             link.restart(self.sub.sysid)
         self.router = Router(self.sub.sysid)      # the routes are learnt again after each boot
@@ -246,6 +252,8 @@ class Bridge:
         """The autopilot loses its power: silent, outputs without pulses, TCP clients dropped."""
         self.boot.power_off(self.steps)
         self.sub.texts.clear()
+        if self.onboard_log is not None:
+            self.onboard_log.reboot()
         self.protocol.reboot_requested = False
         self.servo = np.zeros_like(self.servo)
         for link in self.links:
@@ -285,6 +293,8 @@ class Bridge:
                 self._next_sensors = uptime + SENSOR_PERIOD
             self.sub.update(uptime, self.estimate, self.avionics.sensors(self.t, uptime) if fresh else None)
             self.servo = self.sub.servo_outputs()
+            if self.onboard_log is not None:
+                self.onboard_log.step(uptime, self.sub.armed, self.sub.mode, self.snapshot, self.params)
         with self._lock:
             self.physics.step(self.servo[:8], self.t)
             self.steps += 1
@@ -332,6 +342,8 @@ class Bridge:
         uptime = self.uptime
         while self.sub.texts:
             severity, text = self.sub.texts.pop(0)
+            if self.onboard_log is not None:
+                self.onboard_log.text(uptime, text)
             self._broadcast(telemetry.ENCODER.statustext_encode(severity, text.encode()[:50]))
         snap = None
         for link, scheduler in zip(self.links, self.schedulers):
@@ -377,6 +389,10 @@ class Bridge:
                     self.links[channel].write(msg.get_msgbuf())
                 if not local or not self._accepted(msg):
                     continue
+                if self.onboard_log is not None and msg.get_type() == "STATUSTEXT":   # GCS_MAVLINK::handle_statustext
+                    sender = msg.get_srcSystem()
+                    prefix = "GCS:" if self.params.is_gcs(sender) else f"SRC={sender}/{msg.get_srcComponent()}:"
+                    self.onboard_log.text(uptime, prefix + msg.text)
                 try:
                     replies = self.protocol.handle(msg, link.channel, scheduler, uptime)
                     for reply, to_all in replies:

@@ -310,7 +310,9 @@ def test_a_damaged_telemetry_log_skips_the_damage_and_says_where(own_run, tmp_pa
 @pytest.mark.parametrize("content,name,expected", [
     (b"", "empty.tlog", "no MAVLink message could be read"),
     (bytes(np.random.default_rng(1).integers(0, 256, 4000, dtype=np.uint8)), "noise.tlog", "not a telemetry log"),
-    (b"\xa3\x95" * 100, "flight.bin", "a dataflash log"),
+    (b"\xa3\x95" * 100, "flight.bin", "no dataflash record could be read"),
+    (b"", "flight.BIN", "empty: not a dataflash log"),
+    (b"#!garbage\n" * 10, "flight.log", "a dataflash text log"),
 ])
 def test_nothing_usable_is_one_line_and_exit_2(tmp_path, content, name, expected):
     (tmp_path / name).write_bytes(content)
@@ -340,3 +342,32 @@ def test_a_tlog_record_is_eight_bytes_of_time_then_the_packet(own_run):
     start, end, _ = records(log / "mavlink.tlog")[0]
     head = (log / "mavlink.tlog").read_bytes()[start:end]
     assert abs(struct.unpack(">Q", head[:8])[0] * 1e-6 - time.time()) < 3600 and head[8] in (0xFD, 0xFE)
+
+
+# -- the vehicle's own log (DataFlash) --------------------------------------------------------------------------
+
+def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_says_where_it_stopped(tmp_path):
+    """A run against a bridge process writing its own .BIN (`--log-dir`): `analyze FILE.BIN` finds the mission's
+    start in the run's STATUSTEXT, logged as "GCS:..." in a MSG record, and measures the dive from the vehicle's
+    10 Hz XKF1 as the run measured it from its 50 Hz telemetry; a copy cut at 60 % is read as far as it goes."""
+    mission = short_mission(tmp_path, goto_x=2.0, hold=3.0)
+    bridge = BridgeProcess(tmp_path, "--log-dir", str(tmp_path / "logs"), "--start-depth", "1", speedup=5.0)
+    metrics = tmp_path / "metrics.json"
+    with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--metrics", str(metrics),
+                       "--heartbeat-timeout", "60", "--rerun", "off") as run, bridge:
+        assert run.wait() == 0, run.output
+    run_metrics = json.loads(metrics.read_text())
+    [log] = sorted((tmp_path / "logs").glob("*.BIN"))
+    r = analyze(str(log), "--mission", str(mission), "--out", str(tmp_path / "review"), "--rerun", "off")
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = json.loads((tmp_path / "review" / "metrics.json").read_text())
+    assert m["completed"], r.stdout
+    assert m["rms_position_error_m"] == pytest.approx(run_metrics["rms_position_error_m"], rel=0.5, abs=0.01)
+    assert "announced by the rov-mav run" in r.stdout + r.stderr
+    cut = tmp_path / "cut.BIN"
+    data = log.read_bytes()
+    cut.write_bytes(data[:int(0.6 * len(data))])
+    r = analyze(str(cut), "--mission", str(mission), "--out", str(tmp_path / "cut-review"), "--rerun", "off")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "STOPPED at byte" in r.stdout + r.stderr and "Traceback" not in r.stderr
+    assert not json.loads((tmp_path / "cut-review" / "metrics.json").read_text())["completed"]

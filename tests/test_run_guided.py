@@ -75,7 +75,12 @@ def test_guided_flies_the_square_on_the_bridge_and_leaves_it_as_found(tmp_path):
         elif m.get_type() == "PARAM_SET":
             param_sets += 1
     assert param_sets == 0
-    assert {(t.coordinate_frame, t.type_mask) for t in targets} == {(mavutil.mavlink.MAV_FRAME_LOCAL_NED, 0x9C0)}
+    # ArduSub 4.7.2 (the bridge's default) takes the acceleration too: only the yaw rate is left out
+    assert "ArduSub 4.7.2: GUIDED targets with the acceleration fed forward" in run.output
+    assert {t.coordinate_frame for t in targets} == {mavutil.mavlink.MAV_FRAME_LOCAL_NED}
+    masks = [t.type_mask for t in targets]
+    assert set(masks) <= {0x800, 0x9C0} and masks.count(0x800) > 0.9 * len(masks)   # holds (stopping) without
+    assert max(abs(t.afx) + abs(t.afy) for t in targets) > 0.0      # the square's corners
     span = (targets[-1].time_boot_ms - targets[0].time_boot_ms) / 1000.0
     assert abs((len(targets) - 1) / span - 10.0) < 0.5
     # the log keeps a law's columns (NaN where there is no law) and `analyze` reads it

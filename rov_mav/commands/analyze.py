@@ -46,7 +46,8 @@ MODES_SHOWN = 8          # mode/arming changes printed before "... and N more"
 
 def configure(p: argparse.ArgumentParser) -> None:
     p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
-    p.add_argument("path", metavar="PATH", help="a run's --log folder, or a telemetry log (.tlog)")
+    p.add_argument("path", metavar="PATH", help="a run's --log folder, a telemetry log (.tlog), or the vehicle's own "
+                                                "DataFlash log (.BIN)")
     p.add_argument("--mission", metavar="FILE", help=f"measure the dive against this {MISSION_HELP}")
     p.add_argument("--mission-start", type=number(0.0), metavar="S",
                    help="vehicle seconds since boot at which the mission started (default: as the rov-mav run "

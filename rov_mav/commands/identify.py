@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from rov_mav.commands.arguments import number, output_file
+from rov_mav.commands.common import MISSION_HELP, add_plan_options, load_mission
 
 DESCRIPTION = """\
 Fit the vehicle model the controller uses to one or more run logs (`rov-mav run --log DIR`), ideally of
@@ -43,7 +44,15 @@ MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's th
 
 def configure(p: argparse.ArgumentParser) -> None:
     p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
-    p.add_argument("logs", nargs="+", metavar="LOG_DIR", help="run log directories (`rov-mav run --log DIR`)")
+    p.add_argument("logs", nargs="+", metavar="LOG",
+                   help="run log directories (`rov-mav run --log DIR`), or the vehicle's own DataFlash logs (.BIN) "
+                        "of runs (with --mission)")
+    p.add_argument("--mission", metavar="FILE",
+                   help=f"for a .BIN: the {MISSION_HELP}; its start is the one the run announced (logged by the "
+                        "vehicle as a GCS: message), else --mission-start")
+    p.add_argument("--mission-start", type=number(0.0), metavar="S",
+                   help="for a .BIN: vehicle seconds since boot at which the mission started")
+    add_plan_options(p)
     p.add_argument("--out", required=True, type=output_file, metavar="FILE", help="vehicle file to write")
     p.add_argument("--vehicle", metavar="FILE",
                    help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
@@ -54,6 +63,36 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--window", type=number(0.05, 5.0), default=None, metavar="S",
                    help="length of the integration windows in s (default 0.4)")
     p.set_defaults(func=main)
+
+
+def load_dataflash_run(path: str, mission, start: float | None):
+    """A run as the vehicle's own DataFlash log holds it (`review.dataflash_log`: its EKF state, attitude and rates,
+    RCOU's PWMs and BAT's voltage at 10 Hz), tracking `mission` from its start: an identification `Run` over the
+    mission's span, each tick's PWM the outputs at the middle of its interval. The thrust's sign is the PWM's (no
+    MOT_n_DIRECTION mirroring is known from the log), the state's age 0. ConfigError (one line) when the log cannot give one."""
+    from rov_mav.config import ConfigError
+    from rov_mav.offline.identification import Run
+    from rov_mav.review.dive_review import read_dive
+    from rov_mav.review.reference import mission_start
+
+    if mission is None:
+        raise ConfigError(f"{path}: a .BIN needs --mission (the mission the run flew): the log holds no reference")
+    _, dive = read_dive(Path(path))
+    t0, _ = mission_start(dive, start)
+    if t0 is None or dive.servo_t.size == 0:
+        raise ConfigError(f"{path}: no state or no RCOU in the log")
+    flown = (dive.state_t >= t0) & (dive.state_t <= t0 + mission.duration)
+    t = dive.state_t[flown]
+    if t.size < 10:
+        raise ConfigError(f"{path}: fewer than 10 states between the mission's start ({t0:.2f} s) and its end")
+    # the run's tick holds its PWM until the next one; the log samples the outputs at 10 Hz, so the PWM over a tick's
+    # interval is the logged one at its middle (interpolated): the sample at its start would lag it by half a period
+    middle = np.concatenate([0.5 * (t[1:] + t[:-1]), [t[-1]]])
+    pwm = np.column_stack([np.interp(middle, dive.servo_t, dive.servo[:, i]) for i in range(dive.servo.shape[1])])
+    boot_wall = np.interp(t, dive.clock_t, dive.clock_wall)
+    voltage = np.interp(boot_wall, dive.power_wall, dive.voltage) if dive.power_wall.size else np.full(t.size, 16.0)
+    return Run(path, t, dive.eta[flown], dive.nu[flown], pwm, np.sign(pwm - 1500.0), voltage,
+               mission.reference(t - t0), np.zeros(t.size))
 
 
 def load_run(directory: str):
@@ -115,7 +154,9 @@ def main(args: argparse.Namespace) -> int:
     prior = load_vehicle(args.vehicle)
     window = args.window or WINDOW
     try:
-        runs = [load_run(d) for d in args.logs]
+        mission = load_mission(args) if args.mission else None
+        runs = [load_dataflash_run(d, mission, args.mission_start) if d.lower().endswith(".bin") else load_run(d)
+                for d in args.logs]
         result = identify(runs, prior, args.net_buoyancy, window)
     except (ConfigError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)

@@ -145,8 +145,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="degrade the links on purpose, both directions, in vehicle time: comma-separated "
                         "loss=P (0..1 or %%), delay=T, jitter=T (uniform +-T; order kept), dup=P, reorder=P "
                         "(a message arrives after the next one), cut=LENGTH@START (nothing passes), "
-                        "drop=MESSAGE[@START] (that type never arrives; repeatable), link=N (only the N-th "
-                        "endpoint, --out ones first; default all), times with ms or s, e.g. "
+                        "drop=MESSAGE[@START] (that type never arrives; repeatable), link=N (only endpoint N, "
+                        "counted from 0, --out ones first; default all), times with ms or s, e.g. "
                         "loss=0.2,delay=50ms,cut=30s@20s; or a YAML file with the same keys")
     p.add_argument("--vehicle-faults", type=_vehicle_faults, metavar="SPEC|FILE",
                    help="break the vehicle on purpose, at vehicle times since the start (they run on through "
@@ -165,6 +165,11 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "outliers and dropouts), fused by an EKF3 stand-in; or a YAML file with a navigation: block "
                         "(preset: and any of imu:, compass:, bar30:, dvl:, ugps: with their parameters). Replaces "
                         "an --environment file's navigation")
+    p.add_argument("--log-dir", metavar="DIR",
+                   help="write the vehicle's own DataFlash logs (.BIN, as ArduSub's logs/ folder: DIR/00000001.BIN "
+                        "and on, LASTLOG.TXT; one file from each arming with LOG_DISARMED 0, the default, or from "
+                        "each boot with LOG_DISARMED 1; LOG_FILE_DSRMROT 1 starts a new one after each disarm). "
+                        "`rov-mav analyze FILE.BIN` reviews one. Default: none written")
     p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
                    help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
     add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
@@ -182,7 +187,8 @@ def run(args: argparse.Namespace) -> int:
     config = BridgeConfig(endpoints=endpoints, speedup=args.speedup, firmware=args.firmware, environment=environment,
                           vehicle_path=args.vehicle, origin=args.origin, start_depth=args.start_depth,
                           step=args.step, seed=args.seed, params=dict(args.param), signing_key=signing_key(args),
-                          faults=args.link_faults, vehicle_faults=args.vehicle_faults, navigation=args.navigation)
+                          faults=args.link_faults, vehicle_faults=args.vehicle_faults, navigation=args.navigation,
+                          log_dir=args.log_dir)
     from sim_bridge.server import (
         Bridge,  # the physics stack loads only when a bridge runs
     )
@@ -191,6 +197,10 @@ def run(args: argparse.Namespace) -> int:
         bridge = Bridge(config)
     except ValueError as exc:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"rov-mav sim-bridge: error: --log-dir {args.log_dir}: {(exc.strerror or str(exc)).lower()}",
+              file=sys.stderr)
         return 2
     try:
         bridge.open()

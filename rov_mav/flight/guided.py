@@ -1,6 +1,8 @@
 """`rov-mav run --controller ardusub-guided`: no law of ours. The mission's reference (the lead-in included) goes to
-ArduSub's own GUIDED mode as SET_POSITION_TARGET_LOCAL_NED (position + velocity + yaw, MAV_FRAME_LOCAL_NED) at a
-chosen rate of vehicle time, and ArduSub's position controller flies it on the vehicle's own motor outputs.
+ArduSub's own GUIDED mode as SET_POSITION_TARGET_LOCAL_NED (position + velocity + yaw, MAV_FRAME_LOCAL_NED; and the
+acceleration, fed forward, on ArduSub 4.7.2 and later, whose Guided_PosVelAccel takes it: an older ArduSub drops such
+a target, so it is sent only where AUTOPILOT_VERSION says the vehicle takes it) at a chosen rate of vehicle time, and
+ArduSub's position controller flies it on the vehicle's own motor outputs.
 
 What the runner changes on the vehicle for it: the mode (GUIDED while flying; back to MANUAL before the stop, and to
 the mode it found at the end) and arming; the outputs stay on their motor functions. It keeps holding neutral RC
@@ -46,6 +48,7 @@ class GuidedStream:
         self._next = -math.inf
         self.last: np.ndarray | None = None      # the last reference sent (18,)
         self.sent = 0
+        self.accelerations = False               # the vehicle takes acceleration targets (set once it is known)
 
     def tick(self, t: float, reference: np.ndarray, send: bool) -> bool:
         """At vehicle time t: send `reference` (eta_d, eta_dot_d, ...) if one is due; True if it went (or, with
@@ -55,7 +58,8 @@ class GuidedStream:
         self._next = self._next + self.period if t - self._next < self.period else t + self.period
         self.last = np.array(reference, dtype=float)
         if send:
-            self.session.send_position_target(self.last[:3], self.last[6:9], self.last[5])
+            self.session.send_position_target(self.last[:3], self.last[6:9], self.last[5],
+                                              self.last[12:15] if self.accelerations else None)
             self.sent += 1
         return True
 

@@ -39,6 +39,8 @@ HEARTBEAT_PERIOD = 1.0          # vehicle s
 MANUAL = 19                     # ArduSub custom_mode
 GUIDED = 4
 POS_VEL_YAW = 0x9C0              # SET_POSITION_TARGET type_mask: acceleration and yaw rate ignored
+POS_VEL_ACC_YAW = 0x800          # ... only the yaw rate ignored (ArduSub 4.7.2's Guided_PosVelAccel)
+ACCEL_TARGETS_FROM = (4, 7, 2)   # the first ArduSub that takes them (PR #34298); before, such a target is dropped
 NEUTRAL = 1500
 CHANNELS = 8
 RC_FIELDS = 18
@@ -310,12 +312,24 @@ class Session:
         (`GCS_MAVLINK::handle_statustext`, libraries/GCS_MAVLink/GCS_Common.cpp)."""
         self._send("statustext", mavlink.MAV_SEVERITY_INFO, text.encode()[:50])
 
-    def send_position_target(self, position, velocity, yaw: float) -> None:
-        """SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_LOCAL_NED: position (m) + velocity (m/s) + yaw (rad); ArduSub
-        (4.5, GCS_MAVLINK_Sub::handle_message) flies it in GUIDED with `guided_set_destination_posvel`."""
+    def send_position_target(self, position, velocity, yaw: float, acceleration=None) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_LOCAL_NED: position (m) + velocity (m/s) + yaw (rad), and the
+        acceleration (m/s/s) if given; ArduSub (GCS_MAVLINK_Sub::handle_message) flies it in GUIDED with
+        `guided_set_destination_posvel` (4.7.2: Guided_PosVelAccel, the acceleration fed forward)."""
+        mask, accel = (POS_VEL_YAW, (0.0, 0.0, 0.0)) if acceleration is None else (POS_VEL_ACC_YAW, acceleration)
         self._send("set_position_target_local_ned", int(self.clock.now() * 1000) & 0xFFFFFFFF, self.vehicle.sysid,
-                   self.vehicle.compid, mavlink.MAV_FRAME_LOCAL_NED, POS_VEL_YAW, *map(float, position),
-                   *map(float, velocity), 0.0, 0.0, 0.0, math.remainder(float(yaw), 2 * math.pi), 0.0)
+                   self.vehicle.compid, mavlink.MAV_FRAME_LOCAL_NED, mask, *map(float, position),
+                   *map(float, velocity), *map(float, accel), math.remainder(float(yaw), 2 * math.pi), 0.0)
+
+    def firmware_version(self, timeout: float = 3.0) -> tuple[int, int, int] | None:
+        """(major, minor, patch) from AUTOPILOT_VERSION's flight_sw_version (`send_autopilot_version`), asked for
+        with MAV_CMD_REQUEST_MESSAGE; None if the vehicle does not answer within `timeout` wall s."""
+        self.request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        msg = self.wait(lambda m: m.get_type() == "AUTOPILOT_VERSION", timeout)
+        if msg is None:
+            return None
+        v = msg.flight_sw_version
+        return (v >> 24) & 0xFF, (v >> 16) & 0xFF, (v >> 8) & 0xFF
 
     def set_mode(self, custom_mode: int) -> bool:
         """DO_SET_MODE, accepted and confirmed by a HEARTBEAT."""

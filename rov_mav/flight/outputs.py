@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 
 from rov_mav.flight.guided import GuidedStream
-from rov_mav.flight.link import CHANNELS, MANUAL, MOTOR_TEST_TIMEOUT, NEUTRAL, mode_name
+from rov_mav.flight.link import ACCEL_TARGETS_FROM, CHANNELS, MANUAL, MOTOR_TEST_TIMEOUT, NEUTRAL, mode_name
 from rov_mav.flight.run_io import RunIO
 from rov_mav.flight.run_options import Abort
 from rov_mav.flight.vehicle_changes import PASSTHROUGH_BASE
@@ -190,6 +190,11 @@ class Guided(Passthrough):
     def _switch(self) -> None:
         """GUIDED, then armed: the outputs stay on their motors (ArduSub's mixer), the neutral overrides held."""
         io, s = self.io, self.io.session
+        version = s.firmware_version()
+        self.stream.accelerations = version is not None and version >= ACCEL_TARGETS_FROM
+        io.say(f"ArduSub {'.'.join(map(str, version)) if version else '(version unknown)'}: GUIDED targets with "
+               + ("the acceleration fed forward" if self.stream.accelerations else
+                  f"position and velocity only (acceleration needs {'.'.join(map(str, ACCEL_TARGETS_FROM))})"))
         io.changes.mode_found = s.heartbeat.custom_mode
         if not s.set_mode(self.flight_mode):
             raise Abort(f"the vehicle did not enter {mode_name(self.flight_mode)} mode (ArduSub needs a position "

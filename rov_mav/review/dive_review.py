@@ -23,6 +23,7 @@ from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, tru
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis
+from rov_mav.review.dataflash_log import read_dataflash
 from rov_mav.review.dive import Dive, DiveRecorder
 from rov_mav.review.logdir import RunFolder, column_block, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
@@ -67,20 +68,24 @@ def review_dive(path: str | Path, mission: Mission | None = None, start: float |
     path = Path(path)
     if path.is_dir():
         return _review_folder(path, read_run_folder(path), mission, start)
-    report, dive = _read(path)
+    report, dive = read_dive(path)
     return _review_tlog(path, report, dive, mission, start)
 
 
 # -- reading ---------------------------------------------------------------------------------------------------
 
-def _read(path: Path) -> tuple[ReadReport, Dive]:
+def read_dive(path: Path) -> tuple[ReadReport, Dive]:
+    """A telemetry log (.tlog) or a DataFlash log (.BIN) decoded as a `Dive` (ConfigError, one line, if nothing of a
+    vehicle is in it)."""
     report = ReadReport(str(path), 0)
     recorder = DiveRecorder()
-    for wall, msg in read_tlog(path, report):
+    records = read_dataflash(path, report) if path.suffix.lower() == ".bin" else read_tlog(path, report)
+    for wall, msg in records:
         recorder.take(wall, msg)
     dive = recorder.finish()
     if report.messages == 0:
-        raise ConfigError(f"{path}: no MAVLink message could be read ({report.size} bytes: not a telemetry log?)")
+        what = "dataflash record" if path.suffix.lower() == ".bin" else "MAVLink message"
+        raise ConfigError(f"{path}: no {what} could be read ({report.size} bytes: not a telemetry log?)")
     if dive.vehicle is None:
         raise ConfigError(f"{path}: {report.messages} messages but none from a vehicle (no vehicle HEARTBEAT, "
                           "no ATTITUDE): not a telemetry log of a dive?")
@@ -244,7 +249,7 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
     report = dive = None
     if folder.tlog is not None:
         try:
-            report, dive = _read(folder.tlog)
+            report, dive = read_dive(folder.tlog)
         except ConfigError as exc:
             warnings.append(str(exc))
     has_ticks = "t" in ticks and ticks["t"].size > 0

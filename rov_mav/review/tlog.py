@@ -20,7 +20,7 @@ from rov_mav.flight.link import mavutil
 
 STAMP = 8                 # bytes of timestamp before each packet
 TIME_JUMP = 60.0          # s: a record's wall time this far from both neighbours is a damaged timestamp
-DATAFLASH = (".bin", ".log")
+DATAFLASH_TEXT = ".log"   # the DataFlash text form (mavlogdump's, old ArduPilot's): not read
 
 
 @dataclass
@@ -61,10 +61,12 @@ class ReadReport:
 
 def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tuple[float, object]]:
     """(wall time s, message) for every whole record of the file, in order; `report` (if given) is filled in as it
-    goes. ConfigError when the file cannot be opened or is a dataflash log."""
+    goes. ConfigError when the file cannot be opened or is a DataFlash text log (a .BIN goes to
+    `dataflash_log.read_dataflash`)."""
     path = regular_file(path)
-    if path.suffix.lower() in DATAFLASH:
-        raise ConfigError(f"{path}: a dataflash log (the vehicle's .bin); analyze reads telemetry logs (.tlog)")
+    if path.suffix.lower() == DATAFLASH_TEXT:
+        raise ConfigError(f"{path}: a dataflash text log (.log); analyze reads telemetry logs (.tlog) and the "
+                          "vehicle's binary dataflash logs (.BIN)")
     try:
         conn = mavutil.mavlink_connection(str(path), robust_parsing=True)
         raw = open(path, "rb")

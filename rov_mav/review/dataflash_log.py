@@ -1,0 +1,177 @@
+"""A vehicle's own DataFlash log (.BIN: ArduSub's on-board log, or the built-in vehicle's) read as the telemetry it
+would have sent, so that `analyze` reviews it as it reviews a .tlog (`dive.DiveRecorder` takes the messages).
+
+pymavlink's DFReader decodes every record through the file's own FMT records (layouts differ from ArduSub 4.0 to
+4.7: ATT in centidegrees or float degrees, EKF2's NKF1 or EKF3's XKF1 with or without a core field, BAT with or
+without RemPct); fields are looked up by label. Each record becomes the message the vehicle streams for it, stamped
+with its TimeUS as both the log time and the vehicle's time_boot_ms (a DataFlash log has no wall clock without GPS):
+    ATT + RATE -> ATTITUDE, XKF1 (core 0) / NKF1 -> LOCAL_POSITION_NED, RCOU -> SERVO_OUTPUT_RAW, RCIN -> RC_CHANNELS,
+    BAT -> SYS_STATUS and BATTERY_STATUS, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a
+    "GCS:" or "SRC=sysid/compid:" text as that station's, `GCS_MAVLINK::handle_statustext`), PARM -> PARAM_VALUE.
+A damaged stretch is skipped (DFReader resynchronises on the next record header); a cut-off last record is dropped,
+and the report says where the file stopped.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from pymavlink import DFReader
+
+from rov_mav.config import ConfigError
+from rov_mav.flight.link import mavlink
+from rov_mav.review.tlog import ReadReport, regular_file
+
+VEHICLE = (1, 1)
+GCS = (255, 190)
+_SOURCE = re.compile(r"^SRC=(\d+)/(\d+):")
+EV_ARMED, EV_DISARMED = 10, 11          # LogEvent ids (AP_Logger/LogStructure.h)
+MAV_MODE_ARMED_MANUAL = 81              # custom | stabilize | manual input, as ArduSub's HEARTBEAT base_mode
+_RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
+_SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
+
+
+@contextmanager
+def _reader_noise(report: ReadReport):
+    """DFReader (its C indexer too) tells of damage on stderr: kept from the user's terminal, read for the report's
+    damaged stretches."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as noise:
+        os.dup2(noise.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            noise.seek(0)
+            for size, offset in _SKIPPED.findall(noise.read().decode(errors="replace")):
+                report.damaged.append((int(offset), int(offset) + int(size)))
+
+
+def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterator[tuple[float, object]]:
+    """(log time s, MAVLink message) for the records of a .BIN, in order; `report` filled in as it goes."""
+    path = regular_file(path)
+    report = report if report is not None else ReadReport(str(path), 0)
+    report.size = path.stat().st_size
+    if report.size == 0:
+        raise ConfigError(f"{path}: empty: not a dataflash log")
+    records = []
+    with _reader_noise(report):
+        try:
+            reader = DFReader.DFReader_binary(str(path), zero_time_base=True)
+        except Exception as exc:     # noqa: BLE001 - pymavlink raises anything on a file it cannot index
+            raise ConfigError(f"{path}: cannot read as a dataflash log: {exc}") from None
+        while True:
+            try:
+                record = reader.recv_msg()
+            except Exception:        # noqa: BLE001 - a record that decodes to nonsense ends the readable part
+                break
+            if record is None:
+                break
+            records.append(record)
+            report.end = reader.offset
+        reader.filehandle.close()
+    encoders = {}
+    replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)))
+    for record in records:
+        report.messages += 1
+        for t, msg in replay.take(record):
+            report.last_wall = t
+            yield t, msg
+
+
+class _Replay:
+    """DataFlash records -> the messages ArduSub would have streamed (see the module)."""
+
+    def __init__(self, encoder_of):
+        self.encoder_of = encoder_of
+        self.armed = False
+        self.mode = 0
+        self.rates = (0.0, 0.0, 0.0)            # rad/s, from the last RATE
+
+    def _packed(self, source: tuple[int, int], msg):
+        msg.pack(self.encoder_of(source))
+        return msg
+
+    def take(self, r) -> list[tuple[float, object]]:
+        kind = r.get_type()
+        fields = r.get_fieldnames()
+        if "TimeUS" not in fields:
+            return []
+        t = r.TimeUS * 1e-6
+        ms = int(r.TimeUS // 1000) & 0xFFFFFFFF
+        enc = self.encoder_of(VEHICLE)
+        out = []
+        if kind == "RATE":
+            self.rates = tuple(math.radians(getattr(r, k, 0.0)) for k in ("R", "P", "Y"))
+        elif kind == "ATT":
+            roll, pitch, yaw = (math.radians(getattr(r, k)) for k in ("Roll", "Pitch", "Yaw"))
+            yaw = math.remainder(yaw, 2 * math.pi)
+            out.append(enc.attitude_encode(ms, roll, pitch, yaw, *self.rates))
+        elif kind in ("XKF1", "NKF1") and getattr(r, "C", 0) == 0:
+            out.append(enc.local_position_ned_encode(ms, r.PN, r.PE, r.PD, r.VN, r.VE, r.VD))
+        elif kind == "RCOU":
+            out.append(enc.servo_output_raw_encode(int(r.TimeUS) & 0xFFFFFFFF, 0, *_channels(r, 16)))
+        elif kind == "RCIN":
+            values = _channels(r, 18)
+            out.append(enc.rc_channels_encode(ms, 16, *values, 255))
+        elif kind in ("BAT", "CURR") and getattr(r, "Inst", getattr(r, "Instance", 0)) == 0:
+            volt, curr = getattr(r, "Volt", math.nan), getattr(r, "Curr", math.nan)
+            consumed = getattr(r, "CurrTot", math.nan)
+            out.append(enc.sys_status_encode(0, 0, 0, 0, _int(volt * 1000, 65535), _int(curr * 100, -1, signed=True),
+                                             -1, 0, 0, 0, 0, 0, 0))
+            out.append(enc.battery_status_encode(0, 0, 0, 32767, [_int(volt * 1000, 65535)] + [65535] * 9,
+                                                 _int(curr * 100, -1, signed=True), _int(consumed, -1, signed=True),
+                                                 -1, _int(getattr(r, "RemPct", -1), -1, signed=True)))
+        elif kind == "MODE":
+            self.mode = int(getattr(r, "ModeNum", getattr(r, "Mode", 0)))
+            out.append(self._heartbeat(enc))
+        elif kind == "ARM":
+            self.armed = bool(r.ArmState)
+            out.append(self._heartbeat(enc))
+        elif kind == "EV" and r.Id in (EV_ARMED, EV_DISARMED):
+            self.armed = r.Id == EV_ARMED
+            out.append(self._heartbeat(enc))
+        elif kind == "MSG":
+            text = str(r.Message)
+            source, body = VEHICLE, text
+            if text.startswith("GCS:"):
+                source, body = GCS, text[4:]
+            elif found := _SOURCE.match(text):
+                source, body = (int(found.group(1)), int(found.group(2))), text[found.end():]
+            msg = mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_INFO, body.encode()[:50])
+            return [(t, self._packed(source, msg))]
+        elif kind == "PARM":
+            out.append(enc.param_value_encode(str(r.Name).encode(), float(r.Value), mavlink.MAV_PARAM_TYPE_REAL32,
+                                              0, 65535))
+        for msg in out:
+            msg.pack(enc)
+        return [(t, msg) for msg in out]
+
+    def _heartbeat(self, enc):
+        base = MAV_MODE_ARMED_MANUAL | (mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
+        return enc.heartbeat_encode(mavlink.MAV_TYPE_SUBMARINE, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base, self.mode,
+                                    mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY)
+
+
+def _channels(r, count: int) -> list[int]:
+    out = []
+    for labels in _RC_LABELS[:min(count, 16)]:
+        value = next((getattr(r, name) for name in labels if name in r.get_fieldnames()), 0)
+        out.append(min(max(int(value), 0), 65535))
+    return out + [0] * (count - len(out))
+
+
+def _int(value: float, missing: int, signed: bool = False) -> int:
+    if not math.isfinite(value):
+        return missing
+    return int(round(value)) if signed else min(max(int(round(value)), 0), 65535)

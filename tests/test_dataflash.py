@@ -1,0 +1,106 @@
+"""The built-in vehicle's own log: DataFlash files written as ArduSub writes them, read back with pymavlink's own
+DataFlash reader (DFReader), against the vehicle driven by a pymavlink station over real UDP."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+from pymavlink import DFReader
+from test_bridge_gcs import BridgeThread, Gcs
+from test_bridge_protocol import SPEEDUP
+
+from sim_bridge.dataflash import FORMATS, record
+
+QUIET = {"FS_PILOT_INPUT": 0, "FS_GCS_ENABLE": 0}
+
+
+def _messages(path) -> list:
+    reader = DFReader.DFReader_binary(str(path))
+    out = []
+    while (m := reader.recv_msg()) is not None:
+        out.append(m)
+    return out
+
+
+def _arm(gcs: Gcs, arm: bool) -> None:
+    assert gcs.command(400, 1.0 if arm else 0.0).result == 0
+    gcs.recv("HEARTBEAT", cond=lambda m: m.get_srcSystem() == 1 and bool(m.base_mode & 128) == arm)
+
+
+def test_an_armed_dive_is_logged_as_ardusub_logs_it_and_pymavlink_reads_it(tmp_path):
+    with BridgeThread(SPEEDUP, start_depth=2.0, params=QUIET, log_dir=str(tmp_path)) as b:
+        gcs = Gcs(b.port, SPEEDUP)
+        try:
+            gcs.connect()
+            assert not list(tmp_path.glob("*.BIN"))             # LOG_DISARMED 0: nothing before arming
+            _arm(gcs, True)
+            gcs.rc_override([1600, 1500, 1500, 1500, 1500, 1500, 1500, 1500])
+            gcs.send("statustext", 6, b"rov-mav: mission t0 = 12.500 s since boot")
+            time.sleep(0.5)
+            _arm(gcs, False)
+        finally:
+            gcs.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["00000001.BIN", "LASTLOG.TXT"]
+    assert (tmp_path / "LASTLOG.TXT").read_bytes() == b"1\r\n"
+    messages = _messages(tmp_path / "00000001.BIN")
+    kinds = {m.get_type() for m in messages}
+    assert {"FMT", "PARM", "UNIT", "MULT", "FMTU", "MSG", "VER", "MODE", "ATT", "RATE", "RCIN", "RCOU", "CTUN",
+            "BARO", "XKF1", "POS", "BAT"} <= kinds
+    reader = DFReader.DFReader_binary(str(tmp_path / "00000001.BIN"))
+    while reader.recv_msg() is not None:
+        pass
+    assert reader.mav_type == 12 and reader.flightmode == "MANUAL"          # from the firmware MSG and MODE
+    assert reader.params["MAV_GCS_SYSID"] == 255 and reader.param_defaults["FS_PILOT_INPUT"] == 2
+    texts = [m.Message for m in messages if m.get_type() == "MSG"]
+    assert texts[0] == "ArduSub V4.7.2 (00000000)"
+    assert "GCS:rov-mav: mission t0 = 12.500 s since boot" in texts          # a GCS's text, as handle_statustext
+    xkf = [m for m in messages if m.get_type() == "XKF1"]
+    assert all(m.PD == pytest.approx(2.0, abs=0.05) for m in xkf[:5])        # the estimate's depth, m
+    assert xkf[0].fmt.get_unit("PD") == "m" and xkf[0].fmt.get_unit("TimeUS").endswith("s")
+    times = [m.TimeUS for m in xkf]
+    assert all(0.09e6 < b - a < 0.11e6 for a, b in zip(times, times[1:]))   # 10 Hz of vehicle time
+    assert any(m.C1 == 1600 for m in messages if m.get_type() == "RCIN")   # the station's override, as input
+    rcou = [m for m in messages if m.get_type() == "RCOU"]
+    assert all(1100 <= getattr(m, f"C{i}") <= 1900 for m in rcou for i in range(1, 9))   # the mixer's motors
+    assert len({tuple(getattr(m, f"C{i}") for i in range(5, 9)) for m in rcou}) > 1   # the vertical ones pitch
+
+
+def test_a_new_file_per_arming_with_dsrmrot_and_per_boot_with_log_disarmed(tmp_path):
+    rotate, per_boot = tmp_path / "rotate", tmp_path / "boot"
+    with BridgeThread(SPEEDUP, params={**QUIET, "LOG_FILE_DSRMROT": 1}, log_dir=str(rotate)) as b:
+        gcs = Gcs(b.port, SPEEDUP)
+        try:
+            gcs.connect()
+            for _ in range(2):
+                _arm(gcs, True)
+                time.sleep(0.2)
+                _arm(gcs, False)
+        finally:
+            gcs.close()
+    assert sorted(p.name for p in rotate.glob("*.BIN")) == ["00000001.BIN", "00000002.BIN"]
+    assert (rotate / "LASTLOG.TXT").read_bytes() == b"2\r\n"
+    with BridgeThread(SPEEDUP, params={**QUIET, "LOG_DISARMED": 1}, log_dir=str(per_boot)) as b:
+        gcs = Gcs(b.port, SPEEDUP)
+        try:
+            gcs.connect()
+            time.sleep(0.3)
+            assert gcs.command(246, 1).result == 0                               # reboot
+            gcs.recv("STATUSTEXT", cond=lambda m: m.text == "ArduPilot Ready")
+            time.sleep(0.3)
+        finally:
+            gcs.close()
+    files = sorted(per_boot.glob("*.BIN"))
+    assert [p.name for p in files] == ["00000001.BIN", "00000002.BIN"]
+    first = _messages(files[0])
+    assert {"ATT", "XKF1"} <= {m.get_type() for m in first}                  # logged while disarmed
+
+
+def test_records_pack_as_their_format_says():
+    att = record(FORMATS["ATT"], 123, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 3)
+    assert att[:3] == b"\xa3\x95" + bytes([FORMATS["ATT"].type]) and len(att) == FORMATS["ATT"].length
+    xkf = record(FORMATS["XKF1"], 1, 0, 12.34, -5.0, 359.99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, math.nan)
+    assert len(xkf) == FORMATS["XKF1"].length
+    with pytest.raises(ValueError):
+        record(FORMATS["ATT"], 1, 2)
