@@ -145,27 +145,24 @@ def test_history_keeps_every_row_across_growth():
     assert History(t=1, eta=6).column("eta").shape == (0, 6)
 
 
-def test_override_echo_knows_its_own_commands_by_value_and_a_stranger_after_two_reports_within_a_second():
+def test_override_echo_knows_its_own_commands_by_value_and_a_strangers_at_once():
     echo = OverrideEcho()
     ours = [[1500 + k, 1500 - k, 1510, 1490, 1500, 1500, 1520 + k, 1480] for k in range(300)]
     upper = [0] * 8                                                         # RC 9-16 as found
     for pwm in ours:
         echo.sent_now(pwm)
-    assert not echo.rc(0.0, ours[0] + upper) and not echo.rc(0.02, ours[-1] + upper)   # however late it arrives
+    assert not echo.rc(ours[0] + upper) and not echo.rc(ours[-1] + upper)   # however late it arrives
     stranger = [1500, 1500, 1500, 1500, 1620, 1500, 1500, 1500]            # a pilot's joystick, x = 600
-    assert not echo.rc(0.1, stranger + upper)                               # one odd report is not enough
-    assert not echo.servo(1.2, ours[10])                                    # ... nor two 1.1 s apart
-    assert not echo.servo(1.2, stranger)
-    assert not echo.rc(1.22, ours[3] + upper) and echo.servo(1.9, stranger)  # interleaved: two within 1 s
+    assert echo.servo(stranger)                                        # interleaved with ours: one shows it
     echo = OverrideEcho()
     echo.sent_now(ours[5])
-    assert not echo.rc(0.0, [v + 1 for v in ours[5]] + upper) and not echo.rc(0.1, [v - 1 for v in ours[5]] + upper)
-    assert not echo.rc(0.2, ours[5] + [1100] + upper[1:]) and echo.rc(0.3, ours[5] + [1100] + upper[1:])   # RC 9
+    assert not echo.rc([v + 1 for v in ours[5]] + upper) and not echo.rc([v - 1 for v in ours[5]] + upper)
+    assert not echo.servo(ours[5]) and echo.rc(ours[5] + [1100] + upper[1:])   # RC 9: someone's button
     echo = OverrideEcho()
     echo.sent_now(ours[-1])
     for _ in range(ECHO_MEMORY):
         echo.sent_now([1600] * 8)
-    assert not echo.servo(0.0, ours[-1]) and echo.servo(0.1, ours[-1])      # forgotten after ECHO_MEMORY sends
+    assert echo.servo(ours[-1])                                        # forgotten after ECHO_MEMORY sends
 
 
 def test_streams_half_a_period_apart_keep_their_pairing_after_a_loss():

@@ -18,8 +18,9 @@ from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
 
 SIDE_RATES = {"SYS_STATUS": 2.0, "EKF_STATUS_REPORT": 5.0,   # vehicle Hz; a lost position stops the run at once
               "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 5.0}      # a pilot's joystick interleaved with our overrides
-# shows in about a quarter of these (25 Hz against our 50): two of them within FOREIGN_WINDOW (`OverrideEcho`).
-# Faster streams would see it sooner, but at the test rig's 10x they cost the loop its rate (measured: tilt stops).
+# shows in some of these (`OverrideEcho`): SERVO_OUTPUT_RAW goes up to OUTPUT_WATCH Hz of vehicle time, as long as
+# that is at most OUTPUT_WATCH_WALL a wall second (a simulator sped up 10x: more costs the loop its rate, measured)
+OUTPUT_WATCH, OUTPUT_WATCH_WALL = 50.0, 100.0
 RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
 OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
 OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
@@ -57,9 +58,10 @@ class VehicleClaim:
         s.timesync = True            # the round trip, for the prediction and the summary
         if verdict.abandoned:
             self._take_abandoned_outputs(verdict.abandoned)
+        watch = min(OUTPUT_WATCH, max(SIDE_RATES["SERVO_OUTPUT_RAW"], OUTPUT_WATCH_WALL / s.clock.rate))
         for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
             msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
-            hz = SIDE_RATES.get(name, o.rate)
+            hz = watch if name == "SERVO_OUTPUT_RAW" else SIDE_RATES.get(name, o.rate)
             if s.set_message_interval(msg_id, hz):
                 changes.streams.append(msg_id)
             elif name in ("ATTITUDE", "LOCAL_POSITION_NED"):

@@ -199,11 +199,11 @@ class FlightLoop:
                            f"joystick over our thrusters): {joined[0].describe()}",
                            joined[0].first_seen, joined[0])
         # what the vehicle reports: someone on another link (whose messages we never see) writing its RC input
-        if kind == "RC_CHANNELS" and s.echo.rc(now, rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
+        if kind == "RC_CHANNELS" and s.echo.rc(rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
             raise HandOver(f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another "
                            "station is writing it", now)
         if kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides and \
-                s.echo.servo(now, out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
+                s.echo.servo(out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
             raise HandOver(f"the thrusters' outputs are not what this run sends (SERVO_OUTPUT_RAW {out}): another "
                            "station is writing the RC input they pass through", now)
 

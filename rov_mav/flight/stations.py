@@ -25,8 +25,6 @@ Z_REST = 500                 # MANUAL_CONTROL z (throttle) at rest, 0..1000 in A
 RC_STEADY = 3                # us: RC input samples further apart than this mean someone is writing it
 ECHO_TOLERANCE = 1           # us between an override we sent and the RC input the vehicle reports
 ECHO_MEMORY = 512            # overrides remembered (>= 5 vehicle s at 50 Hz plus the held resends)
-FOREIGN_REPORTS = 2          # RC_CHANNELS / SERVO_OUTPUT_RAW reports unlike anything we sent ...
-FOREIGN_WINDOW = 1.0         # ... within this many vehicle s: someone else writes the RC input
 UINT16_MAX = 65535
 DO_MOTOR_TEST = 209          # MAV_CMD_DO_MOTOR_TEST
 MAV_TYPE_GCS = 6
@@ -183,35 +181,29 @@ class OverrideEcho:
     vehicle's time_boot_ms with our estimate of it at sending, which runs ahead whenever the vehicle stalls, and so
     would take our own command for a stranger's) and, for RC_CHANNELS, channels 9-16 are as they were when the run
     began (it never writes them: a pilot's buttons or another station's override would). A pilot's joystick
-    interleaves with our overrides (ArduSub keeps whichever came last), so its values show in some reports, not all:
-    FOREIGN_REPORTS unlike ours within FOREIGN_WINDOW vehicle s, from RC_CHANNELS and (passthrough outputs show the
-    RC input) SERVO_OUTPUT_RAW together, are someone else writing."""
+    interleaves with our overrides (ArduSub keeps whichever came last), so its values show in some reports, not all,
+    of RC_CHANNELS and (passthrough outputs show the RC input) SERVO_OUTPUT_RAW. One report unlike ours is someone
+    else writing: a row the vehicle reports is one it was sent (MAVLink's CRC keeps a damaged report out), and
+    nothing but a station writes a row we did not send while we hold the overrides (measured, tools/pilot_join.py:
+    waiting for two within 1 s took a joystick on another link up to 2 s of vehicle time to notice)."""
 
     def __init__(self, capacity: int = ECHO_MEMORY):
         self.sent: deque[np.ndarray] = deque(maxlen=capacity)
-        self.foreign: deque[float] = deque()
         self._upper: np.ndarray | None = None       # RC 9-16 as the run found them
 
     def sent_now(self, pwm) -> None:
         self.sent.append(np.asarray(pwm[:8], dtype=float))
 
-    def rc(self, t: float, channels: list[int]) -> bool:
-        """An RC_CHANNELS report (channels 1-16) at vehicle time t; True when someone else is writing."""
+    def rc(self, channels: list[int]) -> bool:
+        """An RC_CHANNELS report (channels 1-16); True when someone else is writing."""
         row = np.asarray(channels, dtype=float)
         if self._upper is None:
             self._upper = row[8:16].copy()
-        return self._report(t, self._ours(row[:8]) and np.array_equal(row[8:16], self._upper))
+        return not (self._ours(row[:8]) and np.array_equal(row[8:16], self._upper))
 
-    def servo(self, t: float, outputs: list[int]) -> bool:
-        """A SERVO_OUTPUT_RAW report (outputs 1-8 on RCIN passthrough) at vehicle time t; True as `rc`."""
-        return self._report(t, self._ours(np.asarray(outputs, dtype=float)))
+    def servo(self, outputs: list[int]) -> bool:
+        """A SERVO_OUTPUT_RAW report (outputs 1-8 on RCIN passthrough); True as `rc`."""
+        return not self._ours(np.asarray(outputs, dtype=float))
 
     def _ours(self, row: np.ndarray) -> bool:
         return not self.sent or any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for pwm in self.sent)
-
-    def _report(self, t: float, ours: bool) -> bool:
-        if not ours:
-            self.foreign.append(t)
-        while self.foreign and self.foreign[0] < t - FOREIGN_WINDOW:
-            self.foreign.popleft()
-        return len(self.foreign) >= FOREIGN_REPORTS
