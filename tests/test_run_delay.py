@@ -49,7 +49,9 @@ def test_a_link_50_ms_late_each_way_is_flown_on_the_predicted_state(tmp_path):
     round_trip = float(re.search(r"delays: round trip ([\d.]+) ms", output).group(1))
     ahead = float(re.search(r"state predicted ([\d.]+) ms ahead", output).group(1))
     assert 95.0 < round_trip < 140.0, output          # 2 x 50 ms, plus the vehicle's and our own turn
-    assert round_trip <= ahead < round_trip + 60.0, output
+    # the horizon is the round trip plus the state's age on our clock (which runs a downlink behind the vehicle's):
+    # its median over the run against the median of the last 15 round trips, a few ms apart either way
+    assert round_trip - 5.0 <= ahead < round_trip + 60.0, output
 
 
 def test_the_same_link_without_prediction_loses_the_vehicle_and_says_so(tmp_path):

@@ -38,6 +38,7 @@ class VehicleClaim:
     def __init__(self, io: RunIO, set_directions):
         self.io = io
         self.set_directions = set_directions
+        self.speed = 1.0            # vehicle s per wall s over the observation (a simulator's speedup)
 
     def claim(self) -> None:
         io, s, o, changes = self.io, self.io.session, self.io.options, self.io.changes
@@ -58,7 +59,7 @@ class VehicleClaim:
         s.timesync = True            # the round trip, for the prediction and the summary
         if verdict.abandoned:
             self._take_abandoned_outputs(verdict.abandoned)
-        watch = min(OUTPUT_WATCH, max(SIDE_RATES["SERVO_OUTPUT_RAW"], OUTPUT_WATCH_WALL / s.clock.rate))
+        watch = min(OUTPUT_WATCH, max(SIDE_RATES["SERVO_OUTPUT_RAW"], OUTPUT_WATCH_WALL / self.speed))
         for name in ("ATTITUDE", "LOCAL_POSITION_NED", *SIDE_RATES):
             msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
             hz = watch if name == "SERVO_OUTPUT_RAW" else SIDE_RATES.get(name, o.rate)
@@ -90,8 +91,10 @@ class VehicleClaim:
         while time.monotonic() < wall_end:
             io.interrupt()
             now = s.clock.now()
-            start = now if start is None and s.clock.started else start
+            if start is None and s.clock.started:
+                start, wall_start = now, time.monotonic()
             if start is not None and now - start >= OBSERVE:
+                self.speed = (now - start) / max(time.monotonic() - wall_start, 1e-3)
                 break
             if time.monotonic() >= next_poll:
                 next_poll = time.monotonic() + s.clock.wall_seconds(OBSERVE_POLL)
