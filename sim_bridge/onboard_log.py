@@ -15,6 +15,7 @@ before a GCS sysid's text, "SRC=sysid/compid:" before another's); PARM for every
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,7 @@ class OnboardLog:
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self.file = None
+        self.failed = False                  # a write failed: no more logging this bridge's life
         self.path: Path | None = None
         self._buffer: list[bytes] = []
         self._next = 0.0
@@ -51,6 +53,8 @@ class OnboardLog:
     # -- files ---------------------------------------------------------------------------------------------------
 
     def _open(self, t: float, snap: Snapshot, params) -> None:
+        if self.failed:
+            return
         number = self._last_number() + 1
         self.path = self.directory / f"{number:08d}.BIN"
         self.file = open(self.path, "wb")
@@ -82,9 +86,21 @@ class OnboardLog:
         self._armed, self._disarmed_at, self._mode, self._last_t = False, None, None, None
 
     def _flush(self) -> None:
+        """Write what is buffered; a write that fails (a full or vanished disk) ends the logging with one line on
+        stderr, as ArduPilot's file backend stops on an I/O error, and the vehicle flies on."""
         if self.file is not None and self._buffer:
-            self.file.write(b"".join(self._buffer))
-            self.file.flush()
+            try:
+                self.file.write(b"".join(self._buffer))
+                self.file.flush()
+            except OSError as exc:
+                print(f"sim-bridge: the on-board log stopped: {self.path}: {(exc.strerror or str(exc)).lower()}",
+                      file=sys.stderr, flush=True)
+                self.failed = True
+                file, self.file = self.file, None
+                try:
+                    file.close()
+                except OSError:
+                    pass
         self._buffer = []
 
     # -- what happens ------------------------------------------------------------------------------------------

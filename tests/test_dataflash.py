@@ -104,3 +104,73 @@ def test_records_pack_as_their_format_says():
     assert len(xkf) == FORMATS["XKF1"].length
     with pytest.raises(ValueError):
         record(FORMATS["ATT"], 1, 2)
+
+
+def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
+    """ArduSub 4.0-era layouts (ATT in centidegrees with ErrRP/ErrYaw, EKF2's NKF1 without a core field, BAT
+    without an instance, PARM without a default, EV for arming, RCOU's 14 channels), other type ids: the reader goes
+    by each file's FMT records and the fields' labels."""
+    from sim_bridge.dataflash import FMT, Format
+
+    from rov_mav.review.dataflash_log import read_dataflash
+    from rov_mav.review.tlog import ReadReport
+
+    old = {
+        "PARM": Format(30, "PARM", "QNf", "TimeUS,Name,Value", "", ""),
+        "MSG": Format(31, "MSG", "QZ", "TimeUS,Message", "", ""),
+        "MODE": Format(32, "MODE", "QMBB", "TimeUS,Mode,ModeNum,Rsn", "", ""),
+        "EV": Format(33, "EV", "QB", "TimeUS,Id", "", ""),
+        "ATT": Format(34, "ATT", "QccccCCCCB", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF", "",
+                      ""),
+        "NKF1": Format(35, "NKF1", "QccCfffffffccce", "TimeUS,Roll,Pitch,Yaw,VN,VE,VD,dPD,PN,PE,PD,GX,GY,GZ,OH", "",
+                       ""),
+        "RCOU": Format(36, "RCOU", "Q" + "H" * 14, "TimeUS," + ",".join(f"C{i}" for i in range(1, 15)), "", ""),
+        "BAT": Format(37, "BAT", "Qfffffcf", "TimeUS,Volt,VoltR,Curr,CurrTot,EnrgTot,Temp,Res", "", ""),
+    }
+    data = [record(FMT, f.type, f.length, f.name, f.format, f.labels) for f in (FMT, *old.values())]
+    data += [record(old["PARM"], 1000, "MAV_GCS_SYSID", 255.0), record(old["MSG"], 1000, "ArduSub V4.0.3 (abc)"),
+             record(old["MODE"], 1000, 19, 19, 0), record(old["EV"], 2000, 10)]
+    for k in range(20):
+        t = 1_000_000 + k * 100_000
+        data += [record(old["ATT"], t, 0, 5.0, 0, -2.0, 90.0, 90.0, 0, 0, 1),
+                 record(old["NKF1"], t, 5.0, -2.0, 90.0, 0.2, 0, 0, 0, 0.02 * k, 1.0, 2.0, 0, 0, 0, 0),
+                 record(old["RCOU"], t, *([1500 + k] * 14)),
+                 record(old["BAT"], t, 15.5, 15.5, 3.0, 120.0, 1.8, 25.0, 0.01)]
+    data.append(record(old["EV"], 3_000_000, 11))
+    path = tmp_path / "old.BIN"
+    path.write_bytes(b"".join(data) + b"\xa3\x95")            # and a cut record at the end
+    report = ReadReport(str(path), 0)
+    messages = [m for _, m in read_dataflash(path, report)]
+    kinds = [m.get_type() for m in messages]
+    assert {"ATTITUDE", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "SYS_STATUS", "HEARTBEAT", "STATUSTEXT",
+            "PARAM_VALUE"} <= set(kinds)
+    attitude = next(m for m in messages if m.get_type() == "ATTITUDE")
+    assert (math.degrees(attitude.roll), math.degrees(attitude.pitch), math.degrees(attitude.yaw)) == \
+        pytest.approx((5.0, -2.0, 90.0), abs=0.01)                       # centidegrees scaled by the format letter
+    position = [m for m in messages if m.get_type() == "LOCAL_POSITION_NED"]
+    assert position[-1].x == pytest.approx(0.38) and position[-1].z == pytest.approx(2.0)
+    beats = [m for m in messages if m.get_type() == "HEARTBEAT"]
+    assert [bool(m.base_mode & 128) for m in beats] == [False, True, False]   # MODE, then EV armed, EV disarmed
+    assert next(m for m in messages if m.get_type() == "SYS_STATUS").voltage_battery == 15500
+    assert report.truncated and report.end == len(b"".join(data))
+
+
+def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):
+    """/dev/full takes no byte: the first flush fails; the bridge says so once and goes on."""
+    from sim_bridge.onboard_log import OnboardLog
+
+    log = OnboardLog(tmp_path)
+    with BridgeThread(SPEEDUP, params=QUIET) as b:
+        b.bridge.onboard_log = log
+        gcs = Gcs(b.port, SPEEDUP)
+        try:
+            gcs.connect()
+            _arm(gcs, True)
+            log.file.close()
+            log.file = open("/dev/full", "wb")                  # the disk fills up under the vehicle
+            time.sleep(0.5)
+            assert gcs.recv("ATTITUDE") is not None               # still flying
+        finally:
+            gcs.close()
+    err = capsys.readouterr().err
+    assert err.count("the on-board log stopped") == 1 and log.failed and log.file is None

@@ -20,7 +20,10 @@ from rov_mav.commands.common import (
 DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, mavlink.tlog) or any ArduSub telemetry log
 (.tlog: flown by rov-mav, by a pilot, or by ArduSub's own AUTO/GUIDED; written by rov-mav, MAVProxy or
-QGroundControl). The vehicle's state is decoded from ATTITUDE and LOCAL_POSITION_NED as `run` decodes it live.
+QGroundControl), or the vehicle's own DataFlash log (.BIN, ArduSub 4.0 to 4.7, or `sim-bridge --log-dir`'s), its
+records read as the telemetry they stand for (ATT and RATE as ATTITUDE, XKF1 or NKF1 as LOCAL_POSITION_NED, RCOU,
+BAT, MODE and ARM, MSG, PARM). The vehicle's state is decoded from ATTITUDE and LOCAL_POSITION_NED as `run` decodes
+it live.
 
 Measured against: the reference the run flew (a log folder's ticks.csv), or --mission from its start (announced
 on the link by rov-mav runs; else --mission-start, else the first arming), or the vehicle's own mission found in
@@ -37,6 +40,7 @@ examples:
   rov-mav run missions/square.yaml --log out/square/log && rov-mav analyze out/square/log
   rov-mav analyze flight.tlog                                   # a pilot's dive, or ArduSub AUTO
   rov-mav analyze flight.tlog --mission missions/square.yaml --mission-start 812.4
+  rov-mav analyze 00000042.BIN --mission missions/square.yaml   # the vehicle's own log of a run
 
 exit status: 0 reviewed (a damaged or truncated log too, with a warning); 2 nothing usable could be read, or bad
 arguments.
