@@ -19,8 +19,8 @@ from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
 SIDE_RATES = {"SYS_STATUS": 2.0, "EKF_STATUS_REPORT": 5.0,   # vehicle Hz; a lost position stops the run at once
               "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 5.0}      # a pilot's joystick interleaved with our overrides
 # shows in some of these (`OverrideEcho`): SERVO_OUTPUT_RAW goes up to OUTPUT_WATCH Hz of vehicle time, as long as
-# that is at most OUTPUT_WATCH_WALL a wall second (a simulator sped up 10x: more costs the loop its rate, measured)
-OUTPUT_WATCH, OUTPUT_WATCH_WALL = 50.0, 100.0
+# that is at most OUTPUT_WATCH_WALL a wall second (a simulator sped up 5-10x: more cost the loop its rate, measured)
+OUTPUT_WATCH, OUTPUT_WATCH_WALL = 50.0, 50.0
 RATE_WINDOW = 3.0                # vehicle s of telemetry measured before arming (enough to see through 30 % loss)
 OBSERVE = 3.0                    # vehicle s of watching the link, sending nothing, before deciding to take it
 OBSERVE_POLL = 0.25              # vehicle s between one-shot requests for RC_CHANNELS and SERVO_OUTPUT_RAW then
