@@ -72,8 +72,8 @@ class OnboardLog:
             return 0
 
     def _close(self) -> None:
+        self._flush()                 # a failed write has closed the file already
         if self.file is not None:
-            self._flush()
             self.file.close()
             self.file = None
 

@@ -35,6 +35,9 @@ from sim_bridge.telemetry import NAME_OF_ID
 mav = mavutil.mavlink
 LINKS = ("udp", "tcp", "udp", "tcp")           # the fuzzed links: 1..4 (a fifth link shares the fourth's rates)
 BATCH = 100
+EVERY_TYPE_PASSES = 2        # every type sent once more, twice over: a frame of the first pass that reboots the vehicle
+                             # (a fuzzed COMMAND_LONG) drops the TCP links with what was still on its way
+EVERY_TYPE_GROUP = 25        # frames between two syncs in those passes: no burst outruns a busy vehicle's UDP buffer
 FLUSH = 280                                     # bytes: longer than any MAVLink frame
 SERVOS = 16
 INT_LIMITS = {mav.MAV_PARAM_TYPE_INT8: (-2**7, 2**7 - 1), mav.MAV_PARAM_TYPE_INT16: (-2**15, 2**15 - 1),
@@ -170,12 +173,13 @@ def fuzz(links: list[tuple[str, int]], checker: Gcs, chunks: int, seed: int, pro
         for index in range(len(links)):
             sender.send(index, bytes(FLUSH))
         last = "SETUP_SIGNING"          # it may give the vehicle a key, after which unsigned frames are dropped
-        for index, name in enumerate(sorted(set(traffic.classes) - {last}) + [last]):
-            if name == last:
-                batch_done(chunks)      # everything else read first (the vehicle reads its links in order)
-            sender.send(index % len(links), traffic.frame(name))
-            traffic.sent_types[name] += 1
-        batch_done(chunks)
+        for _ in range(EVERY_TYPE_PASSES):
+            for index, name in enumerate(sorted(set(traffic.classes) - {last}) + [last]):
+                if name == last or index % EVERY_TYPE_GROUP == 0:
+                    batch_done(chunks)  # everything before read first (the vehicle reads its links in order)
+                sender.send(index % len(links), traffic.frame(name))
+                traffic.sent_types[name] += 1
+            batch_done(chunks)
         sync(checker, chunks + 1)       # answered after the pass that read it: signed if it set a key
     finally:
         report.reconnects = sender.reconnects

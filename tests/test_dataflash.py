@@ -156,9 +156,11 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
 
 
 def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):
-    """/dev/full takes no byte: the first flush fails; the bridge says so once and goes on."""
+    """The log the arming opens is /dev/full, which takes no byte: the first flush fails; the bridge says so once
+    and goes on, and closes without a second complaint."""
     from sim_bridge.onboard_log import OnboardLog
 
+    (tmp_path / "00000001.BIN").symlink_to("/dev/full")       # a disk that is full under the vehicle
     log = OnboardLog(tmp_path)
     with BridgeThread(SPEEDUP, params=QUIET) as b:
         b.bridge.onboard_log = log
@@ -166,8 +168,6 @@ def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_
         try:
             gcs.connect()
             _arm(gcs, True)
-            log.file.close()
-            log.file = open("/dev/full", "wb")                  # the disk fills up under the vehicle
             time.sleep(0.5)
             assert gcs.recv("ATTITUDE") is not None               # still flying
         finally:
