@@ -112,15 +112,22 @@ def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path)
             recorder.close()
         if bridge is not None:
             stop(bridge)
-    if not metrics.exists():
+    m = json.loads(metrics.read_text()) if metrics.exists() else None
+    if m is None or m["duration_s"] <= 0.0:      # stopped before the mission began (in its lead-in, or earlier)
         return {"code": runner.returncode, "output": output, "end": end}
-    m = json.loads(metrics.read_text())
     t0, duration = mission_start(log / "ticks.csv"), m["duration_s"]
     return {"code": runner.returncode, "completed": m["completed"], "truth": m.get("rms_position_error_truth_m"),
             "truth_max": m.get("max_position_error_truth_m"), "estimate": m["rms_position_error_m"],
             "own": m.get("rms_estimate_error_truth_m"), "vehicle": m.get("rms_vehicle_estimate_error_truth_m"),
             "heading": m["rms_attitude_error_rad"], "rate": m["loop"]["control_rate_hz"],
             "activity": recorder.activity(t0, t0 + duration), "end": end, "output": output}
+
+
+def _stop_reason(output: str) -> str:
+    """What the run said when it stopped (its first "stopping:" line), else its last line."""
+    lines = [line for line in output.splitlines() if line.strip()]
+    said = [line.split("stopping:", 1)[1].strip() for line in lines if "stopping:" in line]
+    return said[0] if said else (lines[-1].strip() if lines else "no output")
 
 
 def _mean(results: list[dict], key: str) -> float:
@@ -156,6 +163,7 @@ def main() -> None:
     print("| mission | navigation | controller / estimator | RMS vs truth (cm) | max vs truth (cm) | RMS vs estimate "
           "(cm) | estimate's own RMS vs truth (cm) | heading RMS (deg) | activity (us/s) | rate (Hz) | completed | "
           "end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
+    notes: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         for mission in args.missions.split(","):
@@ -169,10 +177,16 @@ def main() -> None:
                         where = folder / f"{mission}-{navigation}-{row.replace('/', '-')}-{seed}"
                         where.mkdir(parents=True, exist_ok=True)
                         result = fly(path, navigation, row, seed, args, where)
-                        (where / "run.txt").write_text(result.pop("output"))
+                        output = result.pop("output")
+                        (where / "run.txt").write_text(output)
                         results.append(result)
+                        if not (result.get("completed") and result["code"] == 0):
+                            notes.append(f"{mission} {navigation} {row} seed {seed}: exit {result['code']}, "
+                                         f"{_stop_reason(output)}")
                     print(_row(mission, navigation, row, results), flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+    for note in notes:
+        print(f"not completed: {note}")
 
 
 if __name__ == "__main__":

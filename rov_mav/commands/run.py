@@ -412,6 +412,8 @@ def main(args: argparse.Namespace) -> int:
     metrics.update(truth_metrics(result.truth[flown], result.eta_d[flown], result.eta[flown],
                                  result.reported[flown]))
     metrics["loop"] = loop
+    if result.own_estimator is not None:
+        metrics["own_estimator"] = result.own_estimator
     if args.metrics:
         path = Path(args.metrics)
         path.parent.mkdir(parents=True, exist_ok=True)

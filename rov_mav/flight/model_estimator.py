@@ -25,13 +25,18 @@ delay):
   GPS-aided vehicle, a driver that died), the vehicle's own horizontal position, so the filter never runs open-loop
   for long; a source in a dropout still speaks (the UGPS driver sends GPS_INPUT without a fix), and the model
   carries the position through it.
-Each innovation is gated at GATE standard deviations; after RESET_AFTER s of fixes refused in a row the position is
-reset to the next one, as EKF3 resets to its GPS (`NavEKF3_core::ResetPosition`): the filter had gone wrong, not
-the fixes. The first fix resets it too (the position before it was the vehicle's, and what was learnt from it).
+Each innovation is gated at GATE standard deviations; after RESET_AFTER s of fixes refused in a row the filter is
+reset to the next one, as EKF3 resets its position and velocity to its GPS (`NavEKF3_core::ResetPosition`,
+`ResetVelocity`): the filter had gone wrong, not the fixes; the position is the fix's, the velocity the vehicle's own,
+the unknown force learnt afresh. The first fix resets the position alone (the position before it was the vehicle's;
+the force learnt meanwhile is kept).
 What the law flies on is the filter's output, as EKF3's output predictor gives it (`NavEKF3_core::calcOutputStates`,
-EK3_TAU_OUTPUT): carried forward by the same model, and moved towards the filter's estimate over OUTPUT_TIME, so a
-fix's correction (a few cm, 3.8 times a second) is not a step the law turns into thruster activity; a large one (a fix
-after a dropout, a reset: beyond JUMP_MIN) is taken in at CATCH_UP m/s, as `estimate_jumps` takes in the vehicle's.
+EK3_TAU_OUTPUT): carried forward by the same model, and its position and velocity moved towards the filter's over
+OUTPUT_TIME, so a fix's correction (a few cm, 3.8 times a second) is not a step the law turns into thruster activity;
+a jump of the filter beyond JUMP_MIN (a fix after a dropout, a reset) is held out of what the output moves to and
+given up at CATCH_UP m/s, as `estimate_jumps` takes in the vehicle's. (Clamping the output's whole correction at
+CATCH_UP instead let it drift from the filter for good wherever the velocity's error outran CATCH_UP: seen as 3.8 m
+at the start of a square on acoustic fixes.)
 Pure: no I/O, no clock.
 """
 
@@ -58,6 +63,8 @@ DVL_LATENCY = Dvl().latency
 SOURCE_SILENCE = 30.0     # s without a navigation source's message before the vehicle's position is fused
 GATE = 5.0                # standard deviations: a larger innovation is refused (EKF3's default position gate)
 RESET_AFTER = 5.0         # s of refused fixes in a row before they are taken after all
+POSITION, FILTER = "position", "filter"   # what a reset sets (`ModelEstimator._reset`)
+PENDING = 64              # measurements at most held for a time the filter has not reached yet
 ACCEL_NOISE = 0.05        # m/s^2 per axis: what the model misses of the acceleration (process noise)
 POSITION_NOISE = 0.002    # m/sqrt(s): the position's own process noise (rounding of the steps)
 FORCE_WALK = 0.05         # N per sqrt(s): how fast the unknown force may change
@@ -97,7 +104,7 @@ class _Step:
 
 class ModelEstimator:
     """`commanded(t_act, wrench)` for every command; `advance(t, attitude)` with each state sample; `fix`, `dvl`,
-    `depth`, `vehicle_position` as they arrive; `position`, `velocity` the estimate at the last `advance`."""
+    `depth`, `vehicle` as they arrive; `position`, `velocity` the estimate at the last `advance`."""
 
     def __init__(self, model_packed: np.ndarray):
         self.model = np.ascontiguousarray(model_packed, dtype=float)
@@ -105,12 +112,18 @@ class ModelEstimator:
         self.steps: deque[_Step] = deque()
         self.z = np.zeros(N)
         self.out = np.zeros(6)               # what the law sees: the filter's position and velocity, smoothed
+        self.held = np.zeros(3)              # m: the filter's jumps the output has still to take in (`_output_step`)
         self.P = np.zeros((N, N))
         self.t: float | None = None
         self.last_source = -math.inf       # s: the last fix or DVL report fused or refused
         self.refused_since: float | None = None   # s: the first of the fixes refused in a row
         self.fused = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}
-        self.refused = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}
+        self.refused = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}     # gated out
+        self.too_old = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}     # valid before the steps kept
+        self.ahead = {"fix": 0, "dvl": 0, "depth": 0, "vehicle": 0}       # valid after the filter's time
+        self.resets = 0
+        self._pending: deque = deque(maxlen=PENDING)   # (t, measurement's method, its arguments): ahead of self.t
+        self._vehicle_velocity: np.ndarray | None = None   # the vehicle's own body velocity, the latest given
         self._x = np.zeros(12)
         self._dx = np.zeros(12)
         self._tau = np.zeros(6)
@@ -130,6 +143,7 @@ class ModelEstimator:
         self.P = np.diag([START_POSITION ** 2] * 3 + [START_VELOCITY ** 2] * 3 + [START_FORCE ** 2] * 3
                          + [START_CURRENT ** 2] * 2)
         self.out = self.z[:6].copy()
+        self.held = np.zeros(3)
         self.steps.clear()
         self.steps.append(_Step(t, 0.0, np.concatenate([eta[3:6], nu[3:6]]).astype(float), np.zeros(6),
                                 self.z.copy(), self.P.copy(), np.eye(N)))
@@ -151,22 +165,21 @@ class ModelEstimator:
             self.steps.append(_Step(self.t, h, attitude, tau, self.z.copy(), self.P.copy(), F))
         while len(self.steps) > 1 and self.steps[1].t < (self.t or 0.0) - HISTORY:
             self.steps.popleft()
+        while self._pending and self.t is not None and self._pending[0][0] <= self.t + STEP:
+            _, method, args = self._pending.popleft()
+            method(*args)
 
     def _output_step(self, attitude: np.ndarray, tau: np.ndarray, h: float) -> None:
-        """The output carried by the model like the filter, and moved towards the filter's estimate: by h /
-        OUTPUT_TIME of the difference; when the position is more than JUMP_MIN behind (a fix after a dropout, a
-        reset), at CATCH_UP m/s at most: the vehicle is not sent lunging at it (`estimate_jumps`)."""
+        """The output carried by the model like the filter and moved towards the filter's estimate by h /
+        OUTPUT_TIME of the difference (EKF3's output predictor: position and velocity both, so it cannot drift from
+        the filter whatever the velocity's error); the filter's jumps (`held`: a fix after a dropout, a reset) are
+        left out of what it moves to, and given up at CATCH_UP m/s: the vehicle is not sent lunging at them."""
         self.out = self.out + h * self._derivative(np.concatenate([self.out, self.z[6:]]), attitude, tau)[:6]
-        correction = min(h / OUTPUT_TIME, 1.0) * (self.z[:6] - self.out)
-        size = float(np.linalg.norm(correction[:3]))
-        if self.lag > JUMP_MIN and size > CATCH_UP * h:
-            correction[:3] *= CATCH_UP * h / size
-        self.out += correction
-
-    @property
-    def lag(self) -> float:
-        """m the output's position is behind the filter's: a correction still being taken in."""
-        return float(np.linalg.norm(self.z[:3] - self.out[:3]))
+        size = float(np.linalg.norm(self.held))
+        self.held *= max(size - CATCH_UP * h, 0.0) / size if size > 0.0 else 0.0
+        target = self.z[:6].copy()
+        target[:3] -= self.held
+        self.out += min(h / OUTPUT_TIME, 1.0) * (target - self.out)
 
     @property
     def position(self) -> np.ndarray:
@@ -195,6 +208,8 @@ class ModelEstimator:
         H = np.zeros((2, N))
         H[0, 0] = H[1, 1] = 1.0
         R = np.eye(2) * max(std, FIX_FLOOR) ** 2
+        if self._ahead(t, self.fix, (arrival, north, east, std)):
+            return False
         fused = self._fuse(t, H, np.array([north, east]), R, "fix", reset=self._reset_due(arrival))
         if fused:
             self.refused_since = None
@@ -205,6 +220,8 @@ class ModelEstimator:
     def dvl(self, arrival: float, velocity: np.ndarray) -> bool:
         """A DVL report's body velocity that arrived at vehicle time `arrival`; True if fused."""
         self.heard(arrival)
+        if self._ahead(arrival - DVL_LATENCY, self.dvl, (arrival, velocity)):
+            return False
         H = np.zeros((3, N))
         H[:, 3:6] = np.eye(3)
         return self._fuse(arrival - DVL_LATENCY, H, np.asarray(velocity, dtype=float), np.eye(3) * DVL_NOISE ** 2,
@@ -215,35 +232,78 @@ class ModelEstimator:
         H[0, 2] = 1.0
         return self._fuse(t, H, np.array([down]), np.eye(1) * DEPTH_NOISE ** 2, "depth")
 
-    def vehicle_position(self, t: float, north: float, east: float) -> bool:
-        """The vehicle's own horizontal position, fused until a navigation source has given a measurement, and again
-        once none has spoken for SOURCE_SILENCE s."""
+    def vehicle(self, t: float, north: float, east: float, velocity: np.ndarray) -> bool:
+        """The vehicle's own estimate at t: its body velocity u, v, w (what a reset starts the velocity from) and its
+        horizontal position, fused until a navigation source has given a measurement, and again once none has spoken
+        for SOURCE_SILENCE s."""
+        self._vehicle_velocity = np.asarray(velocity, dtype=float).copy()
         if self.sourced and t - self.last_source < SOURCE_SILENCE:
             return False
         H = np.zeros((2, N))
         H[0, 0] = H[1, 1] = 1.0
         return self._fuse(t, H, np.array([north, east]), np.eye(2) * VEHICLE_NOISE ** 2, "vehicle")
 
-    def _reset_due(self, arrival: float) -> bool:
-        """The first fix (what came before was the vehicle's estimate, and the force learnt from it) and one after
-        RESET_AFTER s of fixes refused in a row set the position, not the force or the current."""
-        return not self.sourced or (self.refused_since is not None and arrival - self.refused_since >= RESET_AFTER)
+    def _reset_due(self, arrival: float) -> str | None:
+        """POSITION for the first fix (what came before was the vehicle's estimate), FILTER for one after
+        RESET_AFTER s of fixes refused in a row (the filter has gone wrong, not the fixes): `_reset`."""
+        if not self.sourced:
+            return POSITION
+        if self.refused_since is not None and arrival - self.refused_since >= RESET_AFTER:
+            return FILTER
+        return None
 
-    def _fuse(self, t: float, H: np.ndarray, y: np.ndarray, R: np.ndarray, kind: str, reset: bool = False) -> bool:
+    def _ahead(self, t: float, method, args: tuple) -> bool:
+        """A measurement valid after the filter's time (stamped with the vehicle clock's now, which runs on between
+        the state samples the filter steps to, and before the first of them) is held, and given again by `advance`
+        once the filter gets there."""
+        if self.t is None or t <= self.t + STEP:
+            return False
+        if len(self._pending) == PENDING:
+            self.too_old[method.__name__] += 1      # the oldest held, never reached: dropped
+        self.ahead[method.__name__] += 1
+        self._pending.append((t, method, args))
+        return True
+
+    def _reset(self, z: np.ndarray, P: np.ndarray, position: np.ndarray, R: np.ndarray,
+               what: str) -> tuple[np.ndarray, np.ndarray]:
+        """The position set to the fix's (EKF3's `NavEKF3_core::ResetPosition`); for FILTER also the velocity to the
+        vehicle's own, when it has given one (`ResetVelocity`), the unknown force learnt afresh (a filter that refused
+        its fixes may have put its own error there, cancelling thrust) and the current's uncertainty widened. What is
+        reset is unlinked from the rest."""
+        z, P = z.copy(), P.copy()
+        z[:2] = position
+        reset = [0, 1]
+        if what == FILTER:
+            reset += [6, 7, 8, 9, 10]
+            z[6:9] = 0.0
+            if self._vehicle_velocity is not None:
+                z[3:6] = self._vehicle_velocity
+                reset += [3, 4, 5]
+        P[reset, :], P[:, reset] = 0.0, 0.0
+        P[:2, :2] = R
+        if what == FILTER:
+            if self._vehicle_velocity is not None:
+                P[3:6, 3:6] = np.eye(3) * START_VELOCITY ** 2
+            P[6:9, 6:9] = np.eye(3) * START_FORCE ** 2
+            P[9:11, 9:11] = np.eye(2) * START_CURRENT ** 2
+        return z, P
+
+    def _fuse(self, t: float, H: np.ndarray, y: np.ndarray, R: np.ndarray, kind: str,
+              reset: str | None = None) -> bool:
         """Fuse y = H z + noise(R) at vehicle time t (a step's end at or before it), then step forward again."""
-        if self.t is None or not self.steps or t < self.steps[0].t or t > self.t + STEP:
+        if self.t is None or not self.steps:
+            return False
+        if t < self.steps[0].t:
+            self.too_old[kind] += 1
             return False
         k = len(self.steps) - 1
         while k > 0 and self.steps[k].t > t:
             k -= 1
         step = self.steps[k]
         z, P = step.z, step.P
-        if reset:      # as EKF3's ResetPosition: the position is the fix's, the rest kept and unlinked from it
-            z, P = z.copy(), P.copy()
-            z[:2] = y
-            P[:2, :], P[:, :2] = 0.0, 0.0
-            P[:2, :2] = R
-        updated = (z, P) if reset else _update(z, P, H, y, R, gate=True)
+        if reset:
+            self.resets += 1
+        updated = self._reset(z, P, y, R, reset) if reset else _update(z, P, H, y, R, gate=True)
         if updated is None:
             self.refused[kind] += 1
             return False
@@ -255,6 +315,9 @@ class ModelEstimator:
             for measurement in later.measurements:
                 z, P = _update(z, P, *measurement, gate=False)
             later.z, later.P = z, P
+        jump = z[:3] - self.z[:3]
+        if float(np.linalg.norm(jump)) > JUMP_MIN:
+            self.held += jump
         self.z, self.P = z.copy(), P.copy()
         self.fused[kind] += 1
         return True

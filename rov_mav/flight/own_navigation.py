@@ -51,6 +51,13 @@ class OwnNavigation:
     def commanded(self, t_act: float, wrench: np.ndarray) -> None:
         self.filter.commanded(t_act, wrench)
 
+    def figures(self) -> dict:
+        """What the filter did with each kind of measurement (fused, gated out, valid before the steps it keeps or
+        after its time) and how often it reset its position to a fix: the `own_estimator` block of the metrics."""
+        f = self.filter
+        return {"started_by": self.started_by, "fused": dict(f.fused), "refused": dict(f.refused),
+                "too_old": dict(f.too_old), "ahead": dict(f.ahead), "resets": f.resets}
+
     def state(self, state: State) -> State:
         """The state at state.t the law flies on (see the class)."""
         self._last = state
@@ -60,7 +67,7 @@ class OwnNavigation:
         reported = state.reported if state.reported is not None else state.eta[:3]
         f.advance(state.t, np.concatenate([state.eta[3:6], state.nu[3:6]]))
         f.depth(state.t, float(reported[2]))
-        f.vehicle_position(state.t, float(reported[0]), float(reported[1]))
+        f.vehicle(state.t, float(reported[0]), float(reported[1]), state.nu[:3])
         eta, nu = state.eta.copy(), state.nu.copy()
         eta[:3], nu[:3] = f.position, f.velocity
         return State(state.t, eta, nu, state.received, reported=reported.copy())

@@ -94,6 +94,7 @@ class RunResult:
     round_trip_ms: float               # the link's round trip (TIMESYNC median) at the end, nan if never measured
     stalls: int                        # times this process stalled
     report: list[str] = field(default_factory=list)
+    own_estimator: dict | None = None  # --estimator model: what its filter did (`OwnNavigation.figures`)
 
     def loop_figures(self) -> dict:
         """The `loop` block (`mission.metrics.loop_figures`), with the prediction's horizon p50/p99 (ms), the round

@@ -166,4 +166,5 @@ class Runner:
             latency_ms=loop.column("latency_ms"), tick_times=loop.column("tick_time"),
             horizon_ms=loop.column("horizon_ms"), pwm=loop.column("pwm"),
             round_trip_ms=self.round_trip_ms,
-            stalls=self.loop.stalls, report=report)
+            stalls=self.loop.stalls, report=report,
+            own_estimator=self.io.own.figures() if self.io.own is not None else None)
