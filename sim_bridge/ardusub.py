@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_bridge import joystick, mixer, modes, surface
+from sim_bridge import arming, joystick, mixer, modes, surface
 from sim_bridge.failsafes import Failsafes, Sensors
 from sim_bridge.guided import Guided
 from sim_bridge.modes import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
@@ -143,8 +143,15 @@ class ArduSub:
         self._gcs_seen = t
         return True
 
-    def arm(self, arm: bool) -> int:
-        """MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT. Arming in MANUAL has no pre-arm failures (as on SITL)."""
+    def arm(self, arm: bool, checks: bool = True) -> int:
+        """Arm or disarm: MAV_RESULT. Arming runs the arming checks unless `checks` is False (`sim_bridge.arming`):
+        each failure sent as CRITICAL "Arm: ...", and FAILED."""
+        if arm and not self.armed and checks:
+            if failed := arming.failures(self.params, self.sensors):
+                self.texts += [(MAV_SEVERITY_CRITICAL, f"Arm: {text}") for text in failed]
+                return MAV_RESULT_FAILED
+            if arming.all_off(self.params):
+                self.texts.append((MAV_SEVERITY_WARNING, arming.CHECKS_OFF_WARNING))
         if arm != self.armed:
             self.holds.reset()
             self.guided.reset()

@@ -85,6 +85,8 @@ def _table(names: Names) -> list[Spec]:
         Spec(names.gcs_sysid, 255, INT16),
         *([Spec("MAV_GCS_SYSID_HI", 0, INT16), Spec("MAV_OPTIONS", 0, INT16)] if names.sysid == "MAV_SYSID"
           else [Spec("SYSID_ENFORCE", 0, INT8)]),
+        # the arming checks (`sim_bridge.arming`): 4.7 the checks skipped, 4.5 the checks performed (1: all)
+        Spec("ARMING_SKIPCHK", 0, INT32) if names.sysid == "MAV_SYSID" else Spec("ARMING_CHECK", 1, INT32),
         Spec("FRAME_CONFIG", 2, INT8),                 # vectored_6dof (BlueROV2 Heavy)
         Spec("MOT_PWM_MIN", 1100, INT16),
         Spec("MOT_PWM_MAX", 1900, INT16),
@@ -107,6 +109,8 @@ def _table(names: Names) -> list[Spec]:
         Spec("FS_PILOT_INPUT", 2, INT8),
         Spec("FS_PILOT_TIMEOUT", 3.0, REAL32),
         Spec("BATT_CAPACITY", 18000, INT32),
+        Spec("BATT_ARM_VOLT", 0.0, REAL32),            # V below which arming is refused; 0: off
+        Spec("BATT_ARM_MAH", 0, INT32),                # mAh left below which arming is refused; 0: off
         Spec("LOG_DISARMED", 0, INT8),                 # the on-board log (`sim_bridge.onboard_log`): 0 from arming
         Spec("LOG_FILE_DSRMROT", 0, INT8),             # 1: a new file after each disarm
         Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run

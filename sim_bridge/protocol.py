@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge import schedule, telemetry
+from sim_bridge import arming, schedule, telemetry
 from sim_bridge.ardusub import (
     MAV_RESULT_ACCEPTED,
     MAV_RESULT_DENIED,
@@ -109,7 +109,7 @@ class Protocol:
         before: list[Reply] = []
         after: list[Reply] = []
         if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            result = self._arm_disarm(p1)
+            result = self._arm_disarm(p1, p2)
         elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
             result = self._set_mode(float_to_int(p1), float_to_int(p2, signed=False))
         elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
@@ -155,11 +155,12 @@ class Protocol:
         self.reboot_requested = True
         return MAV_RESULT_ACCEPTED
 
-    def _arm_disarm(self, param1: float) -> int:
+    def _arm_disarm(self, param1: float, param2: float) -> int:
         """`GCS_MAVLINK::handle_command_component_arm_disarm`: param1 equal to 1 (within float32's epsilon) arms,
-        zero disarms, anything else (NaN too) is UNSUPPORTED. No pre-arm checks here, so forcing changes nothing."""
+        with the arming checks unless param2 is `magic_force_arm_value` (`sim_bridge.arming`); zero disarms;
+        anything else (NaN too) is UNSUPPORTED."""
         if is_equal(param1, 1.0):
-            return self.vehicle.arm(True)
+            return self.vehicle.arm(True, checks=not is_equal(param2, arming.FORCE_ARM))
         if is_zero(param1):
             return self.vehicle.arm(False)
         return MAV_RESULT_UNSUPPORTED

@@ -165,6 +165,21 @@ def test_a_lost_position_or_depth_sensor_ends_the_run_naming_it(tmp_path, fault,
     assert said in run.output and "link lost" not in run.output
 
 
+def test_a_vehicle_that_refuses_to_arm_is_left_as_found_and_the_run_says_why(tmp_path):
+    """No depth sensor from boot: ArduSub's arming checks refuse ("Arm: Baro: not healthy", `sim_bridge.arming`);
+    the run stops naming the vehicle's reason, and the outputs it had switched to passthrough are restored."""
+    mission = short_mission(tmp_path, goto_x=LONG)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults", "depth-sensor@0s")
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port)
+        try:
+            assert run.wait() == 1, run.output
+            assert servo_functions(gcs) == list(range(33, 41)) and not armed(gcs)
+        finally:
+            gcs.close()
+    assert "arming failed: the vehicle refused it: Arm: Baro: not healthy" in run.output
+
+
 def test_a_reset_that_moves_the_estimate_a_metre_is_taken_in_at_a_flyable_pace_without_a_lunge(tmp_path):
     """navigation-reset=0.8/0.6@T: the estimate jumps 1 m; the run says so and brings it in at 0.1 m/s, its thrust
     near the path's own before it (taken in at once, 12.9 N against the path's 8.4: measured), and flies on."""
