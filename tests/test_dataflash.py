@@ -106,12 +106,13 @@ def test_records_pack_as_their_format_says():
         record(FORMATS["ATT"], 1, 2)
 
 
-def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
+def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path, monkeypatch):
     """ArduSub 4.0-era layouts (ATT in centidegrees with ErrRP/ErrYaw, EKF2's NKF1 without a core field, BAT
     without an instance, PARM without a default, EV for arming, RCOU's 14 channels), other type ids: the reader goes
     by each file's FMT records and the fields' labels."""
     from sim_bridge.dataflash import FMT, Format
 
+    from rov_mav.review import dataflash_log
     from rov_mav.review.dataflash_log import read_dataflash
     from rov_mav.review.tlog import ReadReport
 
@@ -153,6 +154,10 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
     assert [bool(m.base_mode & 128) for m in beats] == [False, True, False]   # MODE, then EV armed, EV disarmed
     assert next(m for m in messages if m.get_type() == "SYS_STATUS").voltage_battery == 15500
     assert report.truncated and report.end == len(b"".join(data))
+    monkeypatch.setattr(dataflash_log, "STRETCH", 7)        # read a few records at a time: the same, in order
+    again = ReadReport(str(path), 0)
+    assert [m.get_type() for _, m in read_dataflash(path, again)] == kinds
+    assert (again.messages, again.end, again.truncated) == (report.messages, report.end, report.truncated)
 
 
 def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):

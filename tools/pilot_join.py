@@ -70,6 +70,8 @@ def trial(workdir: Path, speedup: float) -> tuple[float, int, str]:
         while time.monotonic() < deadline and (first := pilot.recv_match(type="ATTITUDE", blocking=True,
                                                                            timeout=0.5)) is None:
             pass
+        if first is None:
+            raise RuntimeError("the pilot's link never got an ATTITUDE from the vehicle within 3 s of asking")
         period = 1.0 / (RATE * speedup)
         started = None
         while run.poll() is None and time.monotonic() < deadline + 60.0:

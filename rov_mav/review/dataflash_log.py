@@ -36,6 +36,7 @@ EV_ARMED, EV_DISARMED = 10, 11          # LogEvent ids (AP_Logger/LogStructure.h
 MAV_MODE_ARMED_MANUAL = 81              # custom | stabilize | manual input, as ArduSub's HEARTBEAT base_mode
 _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
+STRETCH = 20000                         # records decoded at a time (a 100 MB log is millions)
 
 
 @contextmanager
@@ -64,29 +65,41 @@ def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterat
     report.size = path.stat().st_size
     if report.size == 0:
         raise ConfigError(f"{path}: empty: not a dataflash log")
-    records = []
     with _reader_noise(report):
         try:
             reader = DFReader.DFReader_binary(str(path), zero_time_base=True)
         except Exception as exc:     # noqa: BLE001 - pymavlink raises anything on a file it cannot index
             raise ConfigError(f"{path}: cannot read as a dataflash log: {exc}") from None
-        while True:
-            try:
-                record = reader.recv_msg()
-            except Exception:        # noqa: BLE001 - a record that decodes to nonsense ends the readable part
-                break
-            if record is None:
-                break
-            records.append(record)
-            report.end = reader.offset
-        reader.filehandle.close()
     encoders = {}
     replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)))
-    for record in records:
-        report.messages += 1
-        for t, msg in replay.take(record):
-            report.last_wall = t
-            yield t, msg
+    try:
+        done = False
+        while not done:
+            with _reader_noise(report):          # a stretch at a time: a large log is never held whole
+                records, done = _read(reader, STRETCH, report)
+            for record in records:
+                report.messages += 1
+                for t, msg in replay.take(record):
+                    report.last_wall = t
+                    yield t, msg
+    finally:
+        reader.filehandle.close()
+
+
+def _read(reader, count: int, report: ReadReport) -> tuple[list, bool]:
+    """Up to `count` records from `reader`, and whether the readable part has ended (its end, or a record that
+    decodes to nonsense)."""
+    records = []
+    while len(records) < count:
+        try:
+            record = reader.recv_msg()
+        except Exception:        # noqa: BLE001 - a record that decodes to nonsense ends the readable part
+            return records, True
+        if record is None:
+            return records, True
+        records.append(record)
+        report.end = reader.offset
+    return records, False
 
 
 class _Replay:
