@@ -347,17 +347,27 @@ def test_a_tlog_record_is_eight_bytes_of_time_then_the_packet(own_run):
 # -- the vehicle's own log (DataFlash) --------------------------------------------------------------------------
 
 def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_says_where_it_stopped(tmp_path):
-    """A run against a bridge process writing its own .BIN (`--log-dir`): `analyze FILE.BIN` finds the mission's
-    start in the run's STATUSTEXT, logged as "GCS:..." in a MSG record, and measures the dive from the vehicle's
-    10 Hz XKF1 as the run measured it from its 50 Hz telemetry; a copy cut at 60 % is read as far as it goes."""
+    """A run against a bridge process writing its own .BIN (`--log-dir`): the run's log folder with the .BIN in place
+    of mavlink.tlog is reviewed with the run's ticks and the vehicle's records placed by the announced start;
+    `analyze FILE.BIN` finds the mission's start in the run's STATUSTEXT, logged as "GCS:..." in a MSG record, and
+    measures the dive from the vehicle's 10 Hz XKF1 as the run measured it from its 50 Hz telemetry; a copy cut at
+    60 % is read as far as it goes."""
     mission = short_mission(tmp_path, goto_x=2.0, hold=3.0)
     bridge = BridgeProcess(tmp_path, "--log-dir", str(tmp_path / "logs"), "--start-depth", "1", speedup=5.0)
-    metrics = tmp_path / "metrics.json"
+    metrics, run_log = tmp_path / "metrics.json", tmp_path / "runlog"
     with RunnerProcess("--target", f"udpout:127.0.0.1:{bridge.port}", str(mission), "--metrics", str(metrics),
-                       "--heartbeat-timeout", "60", "--rerun", "off") as run, bridge:
+                       "--log", str(run_log), "--heartbeat-timeout", "60", "--rerun", "off") as run, bridge:
         assert run.wait() == 0, run.output
     run_metrics = json.loads(metrics.read_text())
     [log] = sorted((tmp_path / "logs").glob("*.BIN"))
+    (run_log / "mavlink.tlog").unlink()                   # the run's folder with the vehicle's log in its place
+    (run_log / log.name).write_bytes(log.read_bytes())
+    r = analyze(str(run_log), "--out", str(tmp_path / "mixed"), "--rerun", "off")
+    assert r.returncode == 0, r.stdout + r.stderr
+    mixed = json.loads((tmp_path / "mixed" / "metrics.json").read_text())
+    assert mixed["rms_position_error_m"] == pytest.approx(run_metrics["rms_position_error_m"], abs=1e-7)   # 9 digits
+    assert mixed["reference"]["mission_start_from"].startswith("announced"), mixed["reference"]
+    assert math.isfinite(mixed["battery"]["start_v"]), mixed["battery"]    # from the vehicle's BAT records
     r = analyze(str(log), "--mission", str(mission), "--out", str(tmp_path / "review"), "--rerun", "off")
     assert r.returncode == 0, r.stdout + r.stderr
     m = json.loads((tmp_path / "review" / "metrics.json").read_text())

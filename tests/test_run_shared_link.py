@@ -201,3 +201,24 @@ def test_a_pilot_joining_mid_dive_on_another_link_of_the_vehicle_is_handed_the_v
     assert _handover_time(run.output) <= HANDOVER_LIMIT
     stopped = float(re.search(r"\[ *([0-9.]+)\] stopping", run.output).group(1))
     assert 10.0 < stopped < 15.0, run.output     # from the status line at 10 s: the pilot's start, then the verdict
+
+
+def test_a_ground_station_whose_heartbeat_the_vehicle_forwards_is_handed_the_vehicle_before_its_joystick(tmp_path):
+    """The same dive, the pilot's station on component 191: the vehicle forwards its HEARTBEAT to the run's link
+    (`MAVLink_routing::check_and_forward`), so the run sees a ground station appear on its GCS sysid mid-run and
+    hands over at once (exit 3), before any joystick, within HANDOVER_LIMIT of vehicle time."""
+    speedup = 5.0
+    mission = short_mission(tmp_path, goto_x=30.0)
+    bridge, pilot_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=speedup)
+    with runner_against(bridge, mission) as run, bridge:
+        run.wait_for("t    10.0 s", timeout=120.0)
+        pilot = Gcs(pilot_port, speedup, sysid=255)
+        pilot.conn.mav.srcComponent = 191
+        try:
+            pilot.start_pump()                          # heartbeats only
+            assert run.wait() == 3, run.output
+        finally:
+            pilot.close()
+    stop = next(line for line in run.output.splitlines() if "stopping:" in line)
+    assert "a ground station appeared mid-run on our GCS sysid 255" in stop and "component 191" in stop, stop
+    assert _handover_time(run.output) <= HANDOVER_LIMIT

@@ -18,7 +18,8 @@ from rov_mav.commands.common import (
 )
 
 DESCRIPTION = """\
-Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, mavlink.tlog) or any ArduSub telemetry log
+Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, and mavlink.tlog or the vehicle's own .BIN
+copied in its place) or any ArduSub telemetry log
 (.tlog: flown by rov-mav, by a pilot, or by ArduSub's own AUTO/GUIDED; written by rov-mav, MAVProxy or
 QGroundControl), or the vehicle's own DataFlash log (.BIN, ArduSub 4.0 to 4.7, or `sim-bridge --log-dir`'s), its
 records read as the telemetry they stand for (ATT and RATE as ATTITUDE, XKF1 or NKF1 as LOCAL_POSITION_NED, RCOU,

@@ -1,4 +1,5 @@
-"""A run's `--log` folder read back: ticks.csv (what the controller saw and did, every tick), events.csv, run.json.
+"""A run's `--log` folder read back: ticks.csv (what the controller saw and did, every tick), events.csv, run.json,
+and the vehicle's side: mavlink.tlog, or the vehicle's own DataFlash log (.BIN) copied into the folder instead.
 
 Each file is read as far as it goes: the first row that is not whole (a run killed while writing) ends it, and the
 reader says at which line and byte. ticks.csv is streamed (an hour at 50 Hz is ~200 MB of text); a FIFO or device
@@ -30,13 +31,13 @@ class RunFolder:
     ticks: dict[str, np.ndarray]     # column name -> (N,) floats; a column the log lacks is absent
     events: list[tuple[float, str, str]]   # (mission s, level, text)
     info: dict                       # run.json ({} when missing)
-    tlog: Path | None
+    tlog: Path | None                # mavlink.tlog, else the vehicle's .BIN copied in beside the run's files
     warnings: list[str]
 
 
 def read_run_folder(path: Path) -> RunFolder:
     """ConfigError if `path` is not a run's log folder."""
-    if not any((path / name).exists() for name in (TICKS, EVENTS, TLOG)):
+    if not any((path / name).exists() for name in (TICKS, EVENTS, TLOG)):     # a .BIN alone is a .BIN's review
         raise ConfigError(f"{path}: not a run's log folder (no {TICKS}, {EVENTS} or {TLOG} in it)")
     warnings: list[str] = []
     ticks: dict[str, np.ndarray] = {}
@@ -56,8 +57,16 @@ def read_run_folder(path: Path) -> RunFolder:
             info = json.loads(config.read_text(path / RUN_INFO, kind="JSON"))
         except (ConfigError, ValueError) as exc:
             warnings.append(f"{path / RUN_INFO}: unreadable ({exc}); the mission's name and controller are unknown")
-    tlog = path / TLOG if (path / TLOG).exists() else None
+    tlog = path / TLOG if (path / TLOG).exists() else _vehicle_log(path, warnings)
     return RunFolder(ticks, events, info if isinstance(info, dict) else {}, tlog, warnings)
+
+
+def _vehicle_log(path: Path, warnings: list[str]) -> Path | None:
+    """Without mavlink.tlog, the vehicle's own DataFlash log copied into the folder (one .BIN) stands for it."""
+    logs = sorted(p for p in path.iterdir() if p.suffix.lower() == ".bin")
+    if len(logs) > 1:
+        warnings.append(f"{path}: {len(logs)} .BIN files and no {TLOG}: none used (keep the one of this run)")
+    return logs[0] if len(logs) == 1 else None
 
 
 def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
