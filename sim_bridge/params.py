@@ -109,6 +109,8 @@ def _table(names: Names) -> list[Spec]:
         Spec("FS_PILOT_INPUT", 2, INT8),
         Spec("FS_PILOT_TIMEOUT", 3.0, REAL32),
         Spec("BATT_CAPACITY", 18000, INT32),
+        Spec("BARO1_GND_PRESS", 101325.0, REAL32),    # Pa calibrated at boot (AP_Baro): the surface, where the
+        Spec("BARO2_GND_PRESS", 101325.0, REAL32),    # vehicle boots (`telemetry.SURFACE_PRESSURE`); 2: the Bar30
         Spec("BATT_ARM_VOLT", 0.0, REAL32),            # V below which arming is refused; 0: off
         Spec("BATT_ARM_MAH", 0, INT32),                # mAh left below which arming is refused; 0: off
         Spec("LOG_DISARMED", 0, INT8),                 # the on-board log (`sim_bridge.onboard_log`): 0 from arming

@@ -367,6 +367,8 @@ def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_say
     mixed = json.loads((tmp_path / "mixed" / "metrics.json").read_text())
     assert mixed["rms_position_error_m"] == pytest.approx(run_metrics["rms_position_error_m"], abs=1e-7)   # 9 digits
     assert mixed["reference"]["mission_start_from"].startswith("announced"), mixed["reference"]
+    depth = mixed["sensors"]["depth"]                        # the Bar30's BARO records, against BARO2_GND_PRESS
+    assert depth["mean_m"] == pytest.approx(1.0, abs=0.05) and "BARO2_GND_PRESS" in depth["source"], depth
     assert math.isfinite(mixed["battery"]["start_v"]), mixed["battery"]    # from the vehicle's BAT records
     r = analyze(str(log), "--mission", str(mission), "--out", str(tmp_path / "review"), "--rerun", "off")
     assert r.returncode == 0, r.stdout + r.stderr
@@ -381,3 +383,38 @@ def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_say
     assert r.returncode == 0, r.stdout + r.stderr
     assert "STOPPED at byte" in r.stdout + r.stderr and "Traceback" not in r.stderr
     assert not json.loads((tmp_path / "cut-review" / "metrics.json").read_text())["completed"]
+
+
+def test_a_dive_without_a_position_source_is_reviewed_from_what_the_vehicle_has(tmp_path):
+    """Most BlueROV2s have no DVL or acoustic positioning: a log with ATTITUDE, the Bar30 (SCALED_PRESSURE2), a
+    downward rangefinder (DISTANCE_SENSOR), outputs and battery, and no LOCAL_POSITION_NED. analyze reviews the
+    attitude, heading, depth, the distance above the bottom, the thrusters and the battery, with the figures these
+    are known to be, and says there was no position (it once said "0 states" and drew the battery only)."""
+    mav = mavutil.mavlink.MAVLink(None, 1, 1)
+    depth_of = lambda k: min(k * 0.02, 4.0)                  # noqa: E731 - m: down at 0.2 m/s to 4 m, from 0
+    packets = []
+    for k in range(600):                                     # 60 s at 10 Hz
+        ms, us = k * 100, int(1_700_000_000e6) + k * 100_000
+        msgs = [mav.heartbeat_encode(mavutil.mavlink.MAV_TYPE_SUBMARINE, mavutil.mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                     209, 19, 4)] if k % 10 == 0 else []
+        msgs += [mav.attitude_encode(ms, math.radians(3.0), math.radians(-4.0), math.radians(k * 0.1), 0, 0, 0),
+                 mav.scaled_pressure2_encode(ms, 1013.25 + depth_of(k) * 1000 * 9.80665 / 100, 0.0, 1500),
+                 mav.distance_sensor_encode(ms, 20, 5000, round(600 - 100 * depth_of(k)), 0, 1,
+                                            mavutil.mavlink.MAV_SENSOR_ROTATION_PITCH_270, 0),
+                 mav.sys_status_encode(0, 0, 0, 500, 16000 - k, 300, -1, 0, 0, 0, 0, 0, 0),
+                 mav.servo_output_raw_encode(ms * 1000, 0, *([1550] * 8))]
+        packets += [struct.pack(">Q", us) + m.pack(mav) for m in msgs]
+    log = tmp_path / "pilot.tlog"
+    log.write_bytes(b"".join(packets))
+    r = analyze(str(log), "--out", str(tmp_path / "review"), "--rerun", f"save:{tmp_path / 'dive.rrd'}")
+    assert r.returncode == 0, r.stdout + r.stderr
+    sensors = json.loads((tmp_path / "review" / "metrics.json").read_text())["sensors"]
+    attitude, depth, bottom = sensors["attitude"], sensors["depth"], sensors["rangefinder"]
+    assert attitude["samples"] == 600 and attitude["roll_rms_deg"] == pytest.approx(3.0, abs=1e-3)
+    assert attitude["pitch_rms_deg"] == pytest.approx(4.0, abs=1e-3)
+    assert attitude["heading_end_deg"] == pytest.approx(59.9, abs=1e-3)
+    assert depth["max_m"] == pytest.approx(4.0, abs=0.01) and depth["min_m"] == pytest.approx(0.0, abs=0.01)
+    assert bottom["min_m"] == pytest.approx(2.0, abs=0.01) and bottom["max_m"] == pytest.approx(6.0, abs=0.01)
+    assert "no position in the log" in r.stdout + r.stderr
+    assert "depth: 0.00 to 4.00 m" in r.stdout and "above the bottom (rangefinder): 2.00 to 6.00 m" in r.stdout
+    assert (tmp_path / "review" / "timeline.png").stat().st_size > 0 and (tmp_path / "dive.rrd").stat().st_size > 0

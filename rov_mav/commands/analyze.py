@@ -129,7 +129,9 @@ def summary(label: str, m: dict) -> list[str]:
     if _finite(loop.get("pwm_activity_us_per_s", float("nan"))):
         lines.append(f"  thrusters moved {loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second, "
                      + ("as commanded)" if loop.get("source") == "ticks.csv" else "SERVO_OUTPUT_RAW as reported)"))
-    if "telemetry" in m:
+    if "telemetry" in m and not m["telemetry"]["samples"]:
+        lines.append("  telemetry: no position state (no LOCAL_POSITION_NED in the log)")
+    elif "telemetry" in m:
         tm = m["telemetry"]
         lines.append(f"  telemetry: {tm['samples']} states at {_num(tm['rate_hz'], '.1f')} Hz; {tm['gaps']} gap(s) "
                      f"longer than {_num(tm['stale_after_ms'], '.0f')} ms (longest {_num(tm['max_gap_ms'], '.0f')} ms)")
@@ -144,6 +146,7 @@ def summary(label: str, m: dict) -> list[str]:
             f"T{1 + max(range(8), key=lambda i: s['fraction_at_limit'][i])} "
             f"{_percent(max(s['fraction_at_limit']))})"
             for name, s in m["saturation"].items() if isinstance(s, dict) and s.get("samples")) or "  no outputs")
+    lines += _sensor_lines(m.get("sensors", {}))
     if m.get("battery"):
         b = m["battery"]
         used = f", {b['consumed_mah']:.0f} mAh used ({b['consumed_from']})" if _finite(b.get("consumed_mah")) else ""
@@ -157,6 +160,22 @@ def summary(label: str, m: dict) -> list[str]:
     if m.get("statustext", {}).get("count"):
         lines.append(f"  vehicle texts: {m['statustext']['count']} STATUSTEXT ({m['statustext']['warnings']} "
                      "warnings or worse)")
+    return lines
+
+
+def _sensor_lines(sensors: dict) -> list[str]:
+    """What the vehicle's own sensors said (`analysis.own_sensors`), position or not."""
+    lines = []
+    if a := sensors.get("attitude"):
+        lines.append(f"  attitude: {a['samples']} samples, roll RMS {a['roll_rms_deg']:.1f} deg, pitch RMS "
+                     f"{a['pitch_rms_deg']:.1f} deg, tilt at most {a['max_tilt_deg']:.1f} deg; heading "
+                     f"{a['heading_start_deg']:.0f} -> {a['heading_end_deg']:.0f} deg")
+    if d := sensors.get("depth"):
+        lines.append(f"  depth: {d['min_m']:.2f} to {d['max_m']:.2f} m (mean {d['mean_m']:.2f} m, {d['samples']} "
+                     f"samples; {d['source']})")
+    if r := sensors.get("rangefinder"):
+        lines.append(f"  above the bottom (rangefinder): {r['min_m']:.2f} to {r['max_m']:.2f} m (mean "
+                     f"{r['mean_m']:.2f} m, {r['samples']} samples)")
     return lines
 
 

@@ -1,4 +1,5 @@
-"""The figures of a dive that need no mission: loop timing, telemetry gaps, thruster saturation, battery, modes.
+"""The figures of a dive that need no mission: loop timing, telemetry gaps, thruster saturation, battery, modes,
+and what the vehicle's own sensors said (attitude, heading, depth, the rangefinder) with or without a position.
 
 Pure functions of a `Dive`'s arrays. Times are vehicle seconds since boot; the log's own (wall) times are mapped
 onto them through the vehicle's timestamps (`vehicle_time`).
@@ -14,6 +15,8 @@ from rov_mav.review.dive import Dive
 
 STALE_PERIODS = 3.0                 # the runner's watchdog: telemetry older than 3 periods is stale
 PWM_LIMITS = (1100.0, 1900.0)       # us: ArduSub's SERVOn_MIN / SERVOn_MAX defaults
+FRESH_WATER = 1000.0                # kg/m^3
+GRAVITY = 9.80665                   # m/s^2
 
 
 def vehicle_time(dive: Dive, wall: np.ndarray) -> np.ndarray:
@@ -143,4 +146,41 @@ def mode_changes(dive: Dive) -> list[tuple[float, str]]:
         elif mode != last[1]:
             out.append((float(ti), f"mode {mode_name(int(mode))}"))
         last = (armed, mode)
+    return out
+
+
+def depth_from_pressure(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """(log times, depth m, how) from the Bar30 (SCALED_PRESSURE2's press_abs, hPa): depth = (p - p_surface) /
+    (rho g), with rho = FRESH_WATER x BARO_SPEC_GRAV (ArduSub's fluid: 1.0 fresh, 1.024 salt; 1.0 if the log has no
+    parameters) and p_surface BARO2_GND_PRESS (the pressure the autopilot calibrated at boot, Pa) if the log has it,
+    else the log's lowest pressure (the vehicle at the surface at some point of the dive); None without the sensor."""
+    if not dive.pressure_wall.size:
+        return None
+    pascal = dive.pressure_abs * 100.0
+    ground = dive.params.get("BARO2_GND_PRESS")
+    how = "BARO2_GND_PRESS" if ground else "the log's lowest pressure"
+    surface = float(ground) if ground else float(np.nanmin(pascal))
+    density = FRESH_WATER * dive.params.get("BARO_SPEC_GRAV", 1.0)
+    return dive.pressure_wall, (pascal - surface) / (density * GRAVITY), f"Bar30 (SCALED_PRESSURE2), surface pressure {how}"
+
+
+def own_sensors(dive: Dive) -> dict:
+    """What the vehicle's own sensors said, position or not: attitude and heading (ATTITUDE), depth (the Bar30),
+    the distance above the bottom (a downward rangefinder); each block present only if the log has it."""
+    out: dict = {}
+    if dive.attitude.size:
+        roll, pitch, yaw = (np.degrees(dive.attitude[:, i]) for i in range(3))
+        tilt = np.degrees(np.arccos(np.clip(np.cos(dive.attitude[:, 0]) * np.cos(dive.attitude[:, 1]), -1, 1)))
+        out["attitude"] = {"samples": int(roll.size), "roll_rms_deg": float(np.sqrt(np.mean(roll ** 2))),
+                           "pitch_rms_deg": float(np.sqrt(np.mean(pitch ** 2))), "max_tilt_deg": float(tilt.max()),
+                           "heading_start_deg": float(yaw[0] % 360), "heading_end_deg": float(yaw[-1] % 360)}
+    depth = depth_from_pressure(dive)
+    if depth is not None:
+        _, d, how = depth
+        out["depth"] = {"samples": int(d.size), "min_m": float(np.nanmin(d)), "mean_m": float(np.nanmean(d)),
+                        "max_m": float(np.nanmax(d)), "source": how}
+    if dive.range_m.size:
+        r = dive.range_m
+        out["rangefinder"] = {"samples": int(r.size), "min_m": float(r.min()), "mean_m": float(r.mean()),
+                              "max_m": float(r.max())}
     return out

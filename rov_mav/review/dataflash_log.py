@@ -6,8 +6,9 @@ pymavlink's DFReader decodes every record through the file's own FMT records (la
 without RemPct); fields are looked up by label. Each record becomes the message the vehicle streams for it, stamped
 with its TimeUS as both the log time and the vehicle's time_boot_ms (a DataFlash log has no wall clock without GPS):
     ATT + RATE -> ATTITUDE, XKF1 (core 0) / NKF1 -> LOCAL_POSITION_NED, RCOU -> SERVO_OUTPUT_RAW, RCIN -> RC_CHANNELS,
-    BAT -> SYS_STATUS and BATTERY_STATUS, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a
-    "GCS:" or "SRC=sysid/compid:" text as that station's, `GCS_MAVLINK::handle_statustext`), PARM -> PARAM_VALUE.
+    BAT -> SYS_STATUS and BATTERY_STATUS, BARO of the Bar30 (instance 1) -> SCALED_PRESSURE2, RFND looking down ->
+    RANGEFINDER, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a "GCS:" or
+    "SRC=sysid/compid:" text as that station's, `GCS_MAVLINK::handle_statustext`), PARM -> PARAM_VALUE.
 A damaged stretch is skipped (DFReader resynchronises on the next record header); a cut-off last record is dropped,
 and the report says where the file stopped.
 """
@@ -36,6 +37,8 @@ EV_ARMED, EV_DISARMED = 10, 11          # LogEvent ids (AP_Logger/LogStructure.h
 MAV_MODE_ARMED_MANUAL = 81              # custom | stabilize | manual input, as ArduSub's HEARTBEAT base_mode
 _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
+BAR30_INSTANCE = 1                      # ArduSub's second barometer: the Bar30 (SCALED_PRESSURE2 on the link)
+DOWN = 25                               # MAV_SENSOR_ROTATION_PITCH_270: a rangefinder looking down
 STRETCH = 20000                         # records decoded at a time (a 100 MB log is millions)
 
 
@@ -145,6 +148,11 @@ class _Replay:
             out.append(enc.battery_status_encode(0, 0, 0, 32767, [_int(volt * 1000, 65535)] + [65535] * 9,
                                                  _int(curr * 100, -1, signed=True), _int(consumed, -1, signed=True),
                                                  -1, _int(getattr(r, "RemPct", -1), -1, signed=True)))
+        elif kind == "BARO" and getattr(r, "I", 0) == BAR30_INSTANCE and "Press" in fields:
+            out.append(enc.scaled_pressure2_encode(ms, r.Press / 100.0, 0.0, _int(getattr(r, "Temp", 0) * 100, 0,
+                                                                                   signed=True)))
+        elif kind == "RFND" and getattr(r, "Orient", DOWN) == DOWN and "Dist" in fields:
+            out.append(enc.rangefinder_encode(float(r.Dist), 0.0))
         elif kind == "MODE":
             self.mode = int(getattr(r, "ModeNum", getattr(r, "Mode", 0)))
             out.append(self._heartbeat(enc))

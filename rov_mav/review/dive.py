@@ -1,6 +1,8 @@
 """A dive as its telemetry log tells it: the vehicle's state decoded as the runner decodes the live link
 (`StateDecoder`), its outputs, battery, arming and modes, texts, parameters, the commands stations sent it, and the
-mission it held (MISSION_ITEM_INT traffic either way).
+mission it held (MISSION_ITEM_INT traffic either way); and, position or not, what its own sensors said: attitude
+and heading (ATTITUDE), the Bar30's pressure (SCALED_PRESSURE2), the rangefinder (DISTANCE_SENSOR facing down,
+RANGEFINDER) - most BlueROV2s have no position source, and their logs no LOCAL_POSITION_NED.
 
 `DiveRecorder.take(wall, msg)` for every message in log order, then `finish()`. The vehicle is the first system
 that sends a vehicle's HEARTBEAT (or state telemetry); what arrives before it is known is held and replayed.
@@ -61,6 +63,12 @@ class Dive:
     others: set[int] = field(default_factory=set)      # other systems (sysids) on the link
     truth_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (T,) SIM_STATE's log times ...
     truth: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))     # (T, 3) ... the true NED position
+    attitude_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (A,) ATTITUDE's log times ...
+    attitude: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (A, 3) ... roll, pitch, yaw (rad)
+    pressure_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (B,) SCALED_PRESSURE2's log times ...
+    pressure_abs: np.ndarray = field(default_factory=lambda: np.zeros(0))   # (B,) ... press_abs (hPa)
+    range_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (R,) the rangefinder's log times ...
+    range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (R,) ... its distance (m)
 
 
 class DiveRecorder:
@@ -68,6 +76,9 @@ class DiveRecorder:
         self.decoder = StateDecoder()
         self.truth = Truth()                      # a simulator's SIM_STATE, when the log has one
         self._truth = History(wall=1, position=3)
+        self._attitude = History(wall=1, rpy=3)
+        self._pressure = History(wall=1, abs=1)
+        self._range = History(wall=1, m=1)
         self.vehicle: tuple[int, int] | None = None
         self.vehicle_type: int | None = None
         self._held: list[tuple[float, object]] = []
@@ -125,7 +136,10 @@ class DiveRecorder:
             texts=self.texts, params=self.params, param_changes=self.param_changes,
             mission=self._mission, mission_complete=self._mission_complete, mission_progress=self.mission_progress,
             home=self.home, origin=self.origin, others=self.others,
-            truth_wall=self._truth.column("wall"), truth=self._truth.column("position"))
+            truth_wall=self._truth.column("wall"), truth=self._truth.column("position"),
+            attitude_wall=self._attitude.column("wall"), attitude=self._attitude.column("rpy"),
+            pressure_wall=self._pressure.column("wall"), pressure_abs=self._pressure.column("abs"),
+            range_wall=self._range.column("wall"), range_m=self._range.column("m"))
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
 
@@ -160,6 +174,15 @@ class DiveRecorder:
             self.vehicle_type = msg.type
             self._heartbeats.append(wall=wall, armed=bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
                                     mode=msg.custom_mode)
+        elif kind == "ATTITUDE":
+            self._attitude.append(wall=wall, rpy=[msg.roll, msg.pitch, msg.yaw])
+        elif kind == "SCALED_PRESSURE2":                    # the Bar30, ArduSub's second barometer
+            self._pressure.append(wall=wall, abs=msg.press_abs)
+        elif kind == "DISTANCE_SENSOR" and msg.orientation == mavlink.MAV_SENSOR_ROTATION_PITCH_270 \
+                and msg.min_distance <= msg.current_distance <= msg.max_distance:
+            self._range.append(wall=wall, m=msg.current_distance / 100.0)      # facing down: above the bottom
+        elif kind == "RANGEFINDER":
+            self._range.append(wall=wall, m=msg.distance)
         elif kind == "SERVO_OUTPUT_RAW":
             self._servo.append(t=msg.time_usec / 1e6,
                                pwm=[getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)])

@@ -144,6 +144,11 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     if t.size:
         trace = _trace(t, dive.eta, dive.nu, reference)
         columns = _tlog_columns(dive, t, t0, reference, command_t)
+    elif dive.attitude.size:
+        columns = _attitude_columns(dive, t0, command_t)
+        warnings.append("no position in the log (no LOCAL_POSITION_NED: no position source, as on most BlueROV2s): "
+                        "attitude, depth, heading, rangefinder, thrusters and battery reviewed; the recording shows "
+                        "the vehicle at north = east = 0")
     thrusters = main is not None and (tested is not None or _passthrough(dive))
     latency = analysis.loop_latency(dive.state_wall, stream[main][0]) if thrusters else np.zeros(0)
     in_window = _within(command_t, window)
@@ -209,15 +214,26 @@ def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
 
 
 def _tlog_columns(dive: Dive, t: np.ndarray, t0: float, reference: np.ndarray | None,
-                  command_t: np.ndarray) -> TickColumns:
-    """The states as ticks for Rerun; outputs, battery and link figures held at each state's time."""
+                  command_t: np.ndarray, eta: np.ndarray | None = None) -> TickColumns:
+    """The states (or `eta` at times t) as ticks for Rerun; outputs, battery and link figures held at each tick."""
+    eta = dive.eta if eta is None else eta
     pwm = _held(dive.servo_t - t0, dive.servo, t) if dive.servo_t.size else None
     voltage = _held(analysis.vehicle_time(dive, dive.power_wall) - t0, dive.voltage, t) \
         if dive.power_wall.size else None
     age = np.diff(t, prepend=t[0])
     window = np.searchsorted(command_t - t0, t, side="right") - np.searchsorted(command_t - t0, t - 1.0)
-    return TickColumns(t=t, eta=dive.eta, reference=reference, tau=None, tau_hat=None, s=None, gamma=None, pwm=pwm,
+    return TickColumns(t=t, eta=eta, reference=reference, tau=None, tau_hat=None, s=None, gamma=None, pwm=pwm,
                        telemetry_age=age, control_rate=window.astype(float), battery_voltage=voltage)
+
+
+def _attitude_columns(dive: Dive, t0: float, command_t: np.ndarray) -> TickColumns:
+    """Without a position: ticks at the ATTITUDE samples, the vehicle at north = east = 0, its depth the Bar30's
+    (held; 0 without it), for the recording."""
+    t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
+    depth = analysis.depth_from_pressure(dive)
+    down = _held(analysis.vehicle_time(dive, depth[0]) - t0, depth[1], t) if depth is not None else np.zeros(t.size)
+    eta = np.column_stack([np.zeros(t.size), np.zeros(t.size), down, dive.attitude])
+    return _tlog_columns(dive, t, t0, None, command_t, eta)
 
 
 def _truth_at(dive: Dive, wall: np.ndarray) -> np.ndarray:
@@ -463,10 +479,12 @@ def _dive_figures(review: DiveReview, dive: Dive, t0: float, window: tuple[float
     review.timeline = _timeline(dive, t0, state_t, link["stale_after_ms"])
     m["vehicle"] = {"sysid": vehicle, "compid": dive.vehicle[1], "type": dive.vehicle_type,
                     "other_systems": sorted(dive.others)}
+    m["sensors"] = analysis.own_sensors(dive)
 
 
 def _timeline(dive: Dive, t0: float, state_t: np.ndarray, stale_ms: float) -> list:
-    """Panels of the timeline figure: time between states (and the watchdog's limit), battery, depth."""
+    """Panels of the timeline figure: time between states (and the watchdog's limit), battery, depth (the estimate's
+    and the Bar30's), attitude, heading, the rangefinder."""
     panels = []
     if state_t.size > 1:
         ends = state_t[[1, -1]] - t0
@@ -478,8 +496,20 @@ def _timeline(dive: Dive, t0: float, state_t: np.ndarray, stale_ms: float) -> li
         panels.append(("battery (V)", {"voltage": (power_t, dive.voltage)}))
     if np.isfinite(dive.current).any():
         panels.append(("current (A)", {"current": (power_t, dive.current)}))
-    if dive.state_t.size:
-        panels.append(("depth (m)", {"z": (dive.state_t - t0, dive.eta[:, 2])}))
+    depth = analysis.depth_from_pressure(dive)
+    if dive.state_t.size or depth is not None:
+        lines = {"z (the estimate)": (dive.state_t - t0, dive.eta[:, 2])} if dive.state_t.size else {}
+        if depth is not None:
+            lines["Bar30"] = (analysis.vehicle_time(dive, depth[0]) - t0, depth[1])
+        panels.append(("depth (m)", lines))
+    if dive.attitude.size:
+        att_t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
+        degrees = np.degrees(dive.attitude)
+        panels.append(("attitude (deg)", {"roll": (att_t, degrees[:, 0]), "pitch": (att_t, degrees[:, 1])}))
+        panels.append(("heading (deg)", {"yaw": (att_t, degrees[:, 2] % 360)}))
+    if dive.range_m.size:
+        panels.append(("above the bottom (m)", {"rangefinder": (analysis.vehicle_time(dive, dive.range_wall) - t0,
+                                                                dive.range_m)}))
     return panels
 
 
