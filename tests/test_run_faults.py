@@ -46,6 +46,29 @@ def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):
     assert "RC overrides on channels 1-8 released" in run.output
 
 
+def test_a_runner_frozen_past_the_pilot_input_timeout_finds_the_vehicle_disarmed_and_says_what_it_said(tmp_path):
+    """SIGSTOP for 2 wall s at speedup 2: 4 s of vehicle time without an override, past FS_PILOT_TIMEOUT (3 s), so
+    ArduSub's pilot-input failsafe says "Lost manual control" and disarms (FS_PILOT_INPUT 2). Woken, the run stops
+    quoting the vehicle's words, restores what it changed and leaves it disarmed."""
+    speedup = 2.0
+    mission = short_mission(tmp_path, goto_x=6.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=speedup)
+    with runner_against(bridge, mission) as run, bridge:
+        gcs = checker(checker_port, speedup=speedup)
+        try:
+            run.wait_for("armed in MANUAL")
+            time.sleep(3.0)                                  # flying (its lead-in, or the mission)
+            run.signal(signal.SIGSTOP)
+            time.sleep(2.0)
+            run.signal(signal.SIGCONT)
+            assert run.wait() == 1, run.output
+            assert_left_safe(gcs)
+        finally:
+            gcs.close()
+    stop = next(line for line in run.output.splitlines() if "stopping:" in line)
+    assert "disarmed during the run" in stop and "it said just before: 'Lost manual control'" in stop, stop
+
+
 def _aborted_and_left_safe(tmp_path, mission, bridge_args: tuple[str, ...], *runner_args: str) -> str:
     """Run against a bridge started with `bridge_args`; the run must abort (exit 1) and leave the vehicle safe."""
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", *bridge_args)

@@ -41,6 +41,7 @@ TRUTH_AGE = 0.5                  # vehicle s: a true position (SIM_STATE) this n
 REBOOTED = 0.5                   # vehicle s: a time this much earlier than the one a reboot went back from is after it
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
+DISARM_WORDS = 5.0               # vehicle s: its texts this recent are quoted when the vehicle disarms under the run
 
 
 class FlightLoop:
@@ -177,7 +178,9 @@ class FlightLoop:
         self._watch_vehicle(msg, kind, now)
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
-                raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)")
+                said = [text for t, text in s.texts if t >= now - DISARM_WORDS]
+                raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)" + (
+                    "; it said just before: " + "; ".join(f"'{text}'" for text in said) if said else ""))
             if msg.custom_mode != self.output.flight_mode:
                 mode = mode_name(msg.custom_mode)
                 if mode == "SURFACE":

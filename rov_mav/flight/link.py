@@ -47,7 +47,7 @@ RC_FIELDS = 18
 RELEASE = 0                     # RC_CHANNELS_OVERRIDE, channels 1-8: hand the channel back
 MOTOR_TEST_PWM = 1              # MAV_CMD_DO_MOTOR_TEST param2: MOTOR_TEST_THROTTLE_PWM
 MOTOR_TEST_BOARD = 2            # ... param6: MOTOR_TEST_ORDER_BOARD, param1 the 0-based output (ArduSub 4.5)
-TEXTS_KEPT = 20                 # the vehicle's STATUSTEXTs kept (an arming refusal's reasons among them)
+TEXTS_KEPT = 20                 # the vehicle's STATUSTEXTs kept (an arming refusal's reasons, a failsafe's words)
 MOTOR_TEST_TIMEOUT = 0.5        # vehicle s after the last DO_MOTOR_TEST until ArduSub ends the test and disarms
 RETRY_FIRST = 0.3               # wall s before the first resend while no round trip was timed (> 2 x 100 ms)
 RETRY_MIN = 0.05                # wall s: the shortest wait before a resend
@@ -108,7 +108,8 @@ class Session:
         self.stations: StationWatch | None = None   # other stations on the link, once the vehicle is known
         self.echo = OverrideEcho()            # the overrides sent recently, to recognise them in RC_CHANNELS
         self.taps: list[Callable[[object, bool], None]] = []   # (msg, outgoing) for every message in and out
-        self.texts: deque[str] = deque(maxlen=TEXTS_KEPT)     # the vehicle's latest STATUSTEXTs
+        self.texts: deque[tuple[float, str]] = deque(maxlen=TEXTS_KEPT)   # the vehicle's latest STATUSTEXTs,
+                                                                          # with the vehicle time they came at
         self.heartbeats = False
         self.rejections: Rejections | None = None   # with a signing key: what the signature check refused
         self._unsigned_since: float | None = None   # wall s of the first rejected vehicle HEARTBEAT
@@ -526,7 +527,7 @@ class Session:
             elif kind == "TIMESYNC":
                 self._timesync_answer(msg)
             elif kind == "STATUSTEXT":
-                self.texts.append(msg.text)
+                self.texts.append((self.clock.now(), msg.text))
             elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
                 answer = "accepted" if msg.result == mavlink.MAV_RESULT_ACCEPTED else "refused"
                 self.motor_test_answers[answer] += 1
