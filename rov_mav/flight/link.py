@@ -110,6 +110,7 @@ class Session:
         self.taps: list[Callable[[object, bool], None]] = []   # (msg, outgoing) for every message in and out
         self.texts: deque[tuple[float, str]] = deque(maxlen=TEXTS_KEPT)   # the vehicle's latest STATUSTEXTs,
                                                                           # with the vehicle time they came at
+        self.texts_seen = 0                                   # how many STATUSTEXTs the vehicle has sent us
         self.heartbeats = False
         self.rejections: Rejections | None = None   # with a signing key: what the signature check refused
         self._unsigned_since: float | None = None   # wall s of the first rejected vehicle HEARTBEAT
@@ -528,6 +529,7 @@ class Session:
                 self._timesync_answer(msg)
             elif kind == "STATUSTEXT":
                 self.texts.append((self.clock.now(), msg.text))
+                self.texts_seen += 1
             elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
                 answer = "accepted" if msg.result == mavlink.MAV_RESULT_ACCEPTED else "refused"
                 self.motor_test_answers[answer] += 1

@@ -69,11 +69,12 @@ class Passthrough:
         if s.heartbeat.custom_mode != MANUAL and not s.set_mode(MANUAL):
             raise Abort("the vehicle did not enter MANUAL mode")
         self.io.changes.armed = True
-        asked = s.clock.now()
+        before = s.texts_seen
         if not s.arm(True):
             refusal = ("Arm: ", "PreArm: ")     # `AP_Arming::check_failed`: sent after the COMMAND_ACK, maybe
             s.wait(lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith(refusal), s.clock.wall_seconds(1.0))
-            said = [text for t, text in s.texts if t >= asked and text.startswith(refusal)]
+            since = list(s.texts)[max(len(s.texts) - (s.texts_seen - before), 0):]
+            said = [text for _, text in since if text.startswith(refusal)]
             raise Abort("arming failed: " + ("the vehicle refused it: " + "; ".join(said) if said
                                              else "the vehicle refused or did not confirm it"))
         self.io.flying_since = s.clock.now()
