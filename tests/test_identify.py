@@ -428,8 +428,8 @@ def test_over_the_bridge(tmp_path, capsys):
     assert vehicle.added_mass[0] == pytest.approx(table["added_mass.surge"][0], rel=1e-4)
     assert vehicle.added_mass[1] == load_vehicle().added_mass[1]         # kept: the prior's, exactly
     # the vehicle's own log of the same run (.BIN, 10 Hz: the PWM taken at each interval's middle), with the mission
-    # it flew: read and fitted, the fit written. NOT asserted: the same parameters back. Within 3 % in about half the
-    # runs; in the others (3 of 6 on 2026-11-27) the forward thrust scale came out 12 % low and the surge added mass
+    # it flew: read and fitted, the fit written. NOT asserted: the same parameters back. Within 3 % in most of the
+    # runs; in the others (3 of 8 on 2026-11-27) the forward thrust scale came out 12 % low and the surge added mass
     # negative (kept at the prior): a known defect of the 10 Hz fit, open (README, identify).
     [bin_log] = (tmp_path / "vehicle-logs").glob("*.BIN")
     code, stdout, stderr = identify_cli(capsys, bin_log, "--mission", mission, "--net-buoyancy", repr(NET_BUOYANCY),

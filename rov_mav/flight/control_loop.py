@@ -42,6 +42,7 @@ REBOOTED = 0.5                   # vehicle s: a time this much earlier than the 
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
 DISARM_WORDS = 5.0               # vehicle s: its texts this recent are quoted when the vehicle disarms under the run
+PILOT_INPUT_LOST = "Lost manual control"   # `Sub::failsafe_pilot_input_check` (ArduSub/failsafe.cpp)
 
 
 class FlightLoop:
@@ -201,7 +202,16 @@ class FlightLoop:
             raise HandOver(f"a ground station appeared mid-run on our GCS sysid {s.sysid} (ArduSub writes its "
                            f"joystick over our thrusters): {joined[0].describe()}",
                            joined[0].first_seen, joined[0])
-        # what the vehicle reports: someone on another link (whose messages we never see) writing its RC input
+        # what the vehicle reports: someone on another link (whose messages we never see) writing its RC input -
+        # unless the vehicle's own pilot-input failsafe just rewrote it (channels 1-6 to neutral, 7-8 kept: this run
+        # was silent too long), which is no other station's doing
+        echo_off = (kind == "RC_CHANNELS" and s.echo.rc([getattr(msg, f"chan{i}_raw") for i in range(1, 17)])) or (
+            kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides
+            and s.echo.servo([getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]))
+        if echo_off and any(text.startswith(PILOT_INPUT_LOST) for t, text in s.texts
+                            if t >= max(now - DISARM_WORDS, since)):
+            raise Abort(f"the vehicle's pilot-input failsafe acted while this run was silent (it said just before: "
+                        f"'{PILOT_INPUT_LOST}')")
         if kind == "RC_CHANNELS" and s.echo.rc(rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
             raise HandOver(f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another "
                            "station is writing it", now)
