@@ -179,7 +179,7 @@ class FlightLoop:
         self._watch_vehicle(msg, kind, now)
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
-                said = [text for t, text in s.texts if t >= now - DISARM_WORDS]
+                said = s.texts_since(max(now - DISARM_WORDS, since))
                 raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)" + (
                     "; it said just before: " + "; ".join(f"'{text}'" for text in said) if said else ""))
             if msg.custom_mode != self.output.flight_mode:
@@ -205,20 +205,19 @@ class FlightLoop:
         # what the vehicle reports: someone on another link (whose messages we never see) writing its RC input -
         # unless the vehicle's own pilot-input failsafe just rewrote it (channels 1-6 to neutral, 7-8 kept: this run
         # was silent too long), which is no other station's doing
-        echo_off = (kind == "RC_CHANNELS" and s.echo.rc([getattr(msg, f"chan{i}_raw") for i in range(1, 17)])) or (
-            kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides
-            and s.echo.servo([getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]))
-        if echo_off and any(text.startswith(PILOT_INPUT_LOST) for t, text in s.texts
-                            if t >= max(now - DISARM_WORDS, since)):
+        if kind == "RC_CHANNELS" and s.echo.rc(rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
+            foreign = (f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another station "
+                       "is writing it")
+        elif kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides and \
+                s.echo.servo(out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
+            foreign = (f"the thrusters' outputs are not what this run sends (SERVO_OUTPUT_RAW {out}): another station "
+                       "is writing the RC input they pass through")
+        else:
+            return
+        if any(text.startswith(PILOT_INPUT_LOST) for text in s.texts_since(max(now - DISARM_WORDS, since))):
             raise Abort(f"the vehicle's pilot-input failsafe acted while this run was silent (it said just before: "
                         f"'{PILOT_INPUT_LOST}')")
-        if kind == "RC_CHANNELS" and s.echo.rc(rc := [getattr(msg, f"chan{i}_raw") for i in range(1, 17)]):
-            raise HandOver(f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another "
-                           "station is writing it", now)
-        if kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides and \
-                s.echo.servo(out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
-            raise HandOver(f"the thrusters' outputs are not what this run sends (SERVO_OUTPUT_RAW {out}): another "
-                           "station is writing the RC input they pass through", now)
+        raise HandOver(foreign, now)
 
     def _watch_vehicle(self, msg, kind: str, now: float) -> None:
         """The vehicle's own trouble: a reboot (its clock went back, or it reports booting), a failsafe it announces,

@@ -306,6 +306,15 @@ class Session:
                 return reply
         return None
 
+    def texts_since(self, t: float) -> list[str]:
+        """The vehicle's STATUSTEXTs kept that came at vehicle time t or later."""
+        return [text for at, text in self.texts if at >= t]
+
+    def texts_after(self, seen: int) -> list[str]:
+        """The vehicle's STATUSTEXTs kept that came after the first `seen` of them (`texts_seen`): by count, as the
+        clock's extrapolation may stamp a text a little before a moment taken just ahead of it."""
+        return [text for _, text in list(self.texts)[max(len(self.texts) - (self.texts_seen - seen), 0):]]
+
     def fire(self, command: int, *params: float, confirmation: int = 0) -> None:
         """COMMAND_LONG without waiting for its COMMAND_ACK (when the link may be gone)."""
         p = list(params) + [0.0] * (7 - len(params))

@@ -73,8 +73,7 @@ class Passthrough:
         if not s.arm(True):
             refusal = ("Arm: ", "PreArm: ")     # `AP_Arming::check_failed`: sent after the COMMAND_ACK, maybe
             s.wait(lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith(refusal), s.clock.wall_seconds(1.0))
-            since = list(s.texts)[max(len(s.texts) - (s.texts_seen - before), 0):]
-            said = [text for _, text in since if text.startswith(refusal)]
+            said = [text for text in s.texts_after(before) if text.startswith(refusal)]
             raise Abort("arming failed: " + ("the vehicle refused it: " + "; ".join(said) if said
                                              else "the vehicle refused or did not confirm it"))
         self.io.flying_since = s.clock.now()

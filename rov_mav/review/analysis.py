@@ -161,7 +161,8 @@ def depth_from_pressure(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None
     how = "BARO2_GND_PRESS" if ground else "the log's lowest pressure"
     surface = float(ground) if ground else float(np.nanmin(pascal))
     density = FRESH_WATER * dive.params.get("BARO_SPEC_GRAV", 1.0)
-    return dive.pressure_wall, (pascal - surface) / (density * GRAVITY), f"Bar30 (SCALED_PRESSURE2), surface pressure {how}"
+    depth = (pascal - surface) / (density * GRAVITY)
+    return dive.pressure_wall, depth, f"Bar30 (SCALED_PRESSURE2), surface pressure {how}"
 
 
 def own_sensors(dive: Dive) -> dict:
