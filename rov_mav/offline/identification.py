@@ -12,7 +12,8 @@ Coriolis terms, the thrust scales through tau, lambda_z through roll and pitch),
   regressors pulls added mass and damping toward zero; the controller's reaction to that noise, which is in the
   thrust, pulls them toward its gains); this is not.
 - the command-to-thrust delay: where the instrument of the delay (how the thrust side moves with it, on the
-  reference) is orthogonal to the residuals, interpolated on a grid of two control periods.
+  reference) is orthogonal to the residuals, the moment falling through zero, interpolated on a grid of two sample
+  periods.
 - 95 % confidence intervals from the instrumental-variables covariance, widened for the residuals' correlation from
   one window to the next.
 
@@ -279,9 +280,12 @@ def _delay(model: Balance, data: Flights, theta0: np.ndarray, free: np.ndarray, 
            period: float) -> float:
     """The command-to-thrust delay (s): where the moment condition z_d^T r = 0 holds, z_d being how the thrust side
     changes with the delay on the reference (the instrument of the delay) and r the residuals of the fit at that
-    delay. Tried on a grid of DELAY_STEPS over two control periods, the zero interpolated between its points.
+    delay. Tried on a grid of DELAY_STEPS over two sample periods, the zero interpolated between its points.
     (Not the delay of least residual: the controller's reaction to sensor noise is in the thrust, so the residual
-    is smallest at a delay that lines that reaction up with the noise.)"""
+    is smallest at a delay that lines that reaction up with the noise.)
+    Near the true delay d* the thrust side moves by (d - d*) z_d, so the moment falls through zero there: a zero it
+    rises through is not the delay (on a .BIN's 10 Hz samples one appears a period or two on), and a moment already
+    negative at 0 puts d* at 0 (the vehicle's own log stamps its outputs on its own clock)."""
     delays = np.linspace(0.0, 2.0 * period, DELAY_STEPS)
     h = 0.25 * (delays[1] - delays[0])
     moments = []
@@ -291,11 +295,18 @@ def _delay(model: Balance, data: Flights, theta0: np.ndarray, free: np.ndarray, 
         ahead, behind = data.reference_windows(d + h, demand), data.reference_windows(d - h, demand)
         change = (model.sides(fit.theta, ahead)[1] - model.sides(fit.theta, behind)[1]) / scale
         moments.append(float(np.sum(change * fit.residual / scale)) / float(np.sqrt(np.sum(change**2))))
-    moments = np.array(moments)
-    crossing = np.flatnonzero(np.sign(moments[:-1]) * np.sign(moments[1:]) <= 0)
-    if crossing.size == 0:
-        return float(delays[np.argmin(np.abs(moments))])
-    k = crossing[0]
+    return falling_zero(delays, np.array(moments))
+
+
+def falling_zero(delays: np.ndarray, moments: np.ndarray) -> float:
+    """Where `moments` (sampled at `delays`) first falls through zero, interpolated: the first delay when it is
+    already at or below zero there, the last when it never falls."""
+    if moments[0] <= 0.0:
+        return float(delays[0])
+    falling = np.flatnonzero((moments[:-1] > 0.0) & (moments[1:] <= 0.0))
+    if falling.size == 0:
+        return float(delays[-1])
+    k = falling[0]
     return float(delays[k] + (delays[k + 1] - delays[k]) * moments[k] / (moments[k] - moments[k + 1]))
 
 
