@@ -6,21 +6,22 @@ Two Kalman filters, run at the sensors' rates (the IMU's, 50 Hz by default, not 
 - translation: [north, east, down, v_north, v_east, v_down], predicted with the IMU's delta velocities rotated to
   NED by the estimated attitude, corrected by the Bar30 (down), the DVL (body velocity rotated by the attitude of its
   time: `NavEKF3_core::FuseBodyVel`) and the acoustic fix (north, east: `FuseVelPosNED`).
-Delayed fusion as EKF3's (`NavEKF3_core::UpdateFilter`, `storedIMU`, `calcOutputStates`): the filter runs on a
-delayed time horizon, `horizon` behind now (the largest delay the EKF assumes for a source); each measurement is
-stamped with its arrival less the delay the EKF assumes for it and fused when the horizon reaches that stamp, in time
-order; the output is the horizon's state predicted to now through the IMU samples since (EKF3's output predictor,
-here without its complementary-filter smoothing: a correction shows at once as a step). Not yet as ArduSub: EKF3
-spreads each correction over EK3_TAU_OUTPUT (25 cs; `NavEKF3_core::calcOutputStates`, a PI on the history of outputs;
-only a reset, `ResetPositionNE`, moves the output at once). Emulated, it made the run's thruster watch take a 10 cm
-fix correction spread over 0.3 s for a reversed thruster (square, ugps, seed 2, vehicle t 202 s), and the run's jump
-handling misses spread corrections: both must learn it before the stand-in follows EKF3 here. A source whose real
-latency exceeds the assumed delay is fused at the wrong time, and the estimate lags by the difference.
+Delayed fusion as EKF3's (`NavEKF3_core::UpdateFilter`, `storedIMU`): the filter runs on a delayed time horizon,
+`horizon` behind now (the largest delay the EKF assumes for a source); each measurement is stamped with its arrival
+less the delay the EKF assumes for it and fused when the horizon reaches that stamp, in time order. A source whose
+real latency exceeds the assumed delay is fused at the wrong time, and the estimate lags by the difference.
+The output, what the vehicle reports, is EKF3's output predictor (`NavEKF3_core::calcOutputStates`): a state of its
+own propagated to now with every IMU sample and kept for each sample since the horizon; each time the filter steps,
+the difference e between the filter's state and the output kept for the horizon's time is fed back to all the kept
+outputs and to now's as a PI correction, K e + 0.1 K^2 sum(e) with K = dt / TAU_OUTPUT (EK3_TAU_OUTPUT, 25 cs): a
+fix's correction reaches the report spread over about TAU_OUTPUT, not as a step. A reset moves the outputs at once.
 Each innovation is gated as EKF3 does (5 standard deviations for position, velocity and height, 3 for the compass:
 EK3_POS_I_GATE, EK3_VEL_I_GATE, EK3_HGT_I_GATE, EK3_MAG_I_GATE defaults); the test ratios, innovation^2 /
-(gate^2 x innovation variance), are what EKF_STATUS_REPORT reports (as their square roots, `getVariances`). Position
-fixes rejected for RESET_AFTER in a row reset the position to the fix (EKF3 resets to the GPS after its retry time:
-`ResetPosition`): a jump. `nis` keeps each fused measurement's normalised innovation squared and its dimension.
+(gate^2 x innovation variance), are what EKF_STATUS_REPORT reports (as their square roots, `getVariances`). A position
+fix rejected when no fix has passed for the retry time (7 s, 10 s with the DVL's velocity aiding: `posTimeout`,
+`posRetryTimeNoVel_ms` / `posRetryTimeUseVel_ms`, `NavEKF3_core::setAidingMode`) resets the position, the filter's and
+every output's, to the fix (`FuseVelPosNED`, `ResetPosition`): a jump. `nis` keeps each fused measurement's
+normalised innovation squared and its dimension.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ from rov_mav.model.navigation import Navigation
 from sim_bridge.sensors import Bar30Sample, CompassSample, DvlReport, ImuSample, UgpsFix, rot
 
 POS_GATE, VEL_GATE, HGT_GATE, MAG_GATE = 5.0, 5.0, 5.0, 3.0
-RESET_AFTER = 5.0             # s of position fixes rejected in a row before a reset to the fix (chosen)
+RETRY_NO_VEL, RETRY_WITH_VEL = 7.0, 10.0        # s without a fix passing before a rejected one resets the position
+TAU_OUTPUT = 0.25             # s, EK3_TAU_OUTPUT's default (25 cs)
 INITIAL_POS_STD, INITIAL_VEL_STD = 0.1, 0.05      # m, m/s at initialisation (the start is known: chosen)
 HEADING_STD, BIAS_STD, BIAS_WALK = 0.05, 0.005, 1e-5   # rad, rad/s, rad/s per sqrt(s) (chosen)
 NIS_MEMORY = 4000
@@ -67,8 +69,12 @@ class Estimator:
         self.nis: deque = deque(maxlen=NIS_MEMORY)      # (kind, nis, dim)
         self.aided_at = t0 if nav.has_position_source else -math.inf
         self.glitching = False                          # the last position fix was rejected
-        self._rejected_since: float | None = None
+        self._passed_at = t0                            # horizon time of the last position fix that passed
+        self.retry = RETRY_WITH_VEL if nav.dvl is not None else RETRY_NO_VEL
         self.resets = 0
+        self._now = (self.x[:3].copy(), self.x[3:].copy())     # the output predictor's state at now
+        self._kept: deque = deque()                     # its state at each IMU sample still past the horizon
+        self._sum_error = np.zeros(6)                   # the PI correction's integral
         self.output = (np.concatenate((self.x[:3], np.asarray(eta[3:6], float))), np.asarray(nu, float).copy())
         self._fq: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -95,15 +101,33 @@ class Estimator:
         self.roll, self.pitch = s.roll, s.pitch
         self._heading_predict(s)
         r = rot(self.roll, self.pitch, self.psi)
-        self._buffer.append((s.t, s.dt, r @ s.dv_body, self.roll, self.pitch, self.psi))
+        dv = r @ s.dv_body
+        self._buffer.append((s.t, s.dt, dv, self.roll, self.pitch, self.psi))
+        p, v = self._now
+        v_next = v + dv
+        self._now = (p + 0.5 * (v + v_next) * s.dt, v_next)
+        self._kept.append(self._now)
         self.rates = s.gyro - np.array([0.0, 0.0, self.bias])
         while self._buffer and self._buffer[0][0] <= s.t - self.horizon + 1e-9:
-            t, dt, dv, *attitude = self._buffer.popleft()
+            t, dt, dv_h, *attitude = self._buffer.popleft()
             self._fuse_due(self.t_h)
-            self._predict(dt, dv)
+            self._predict(dt, dv_h)
             self.t_h, self._attitude_h = t, tuple(attitude)
-        self._fuse_due(self.t_h)
-        self._output(r)
+            self._fuse_due(self.t_h)
+            self._correct_outputs(dt, self._kept.popleft())
+        p, v = self._now
+        self.output = (np.array([p[0], p[1], p[2], self.roll, self.pitch, self.psi]),
+                       np.concatenate((r.T @ v, self.rates)))
+
+    def _correct_outputs(self, dt: float, kept: tuple[np.ndarray, np.ndarray]) -> None:
+        """The output predictor's PI feedback (`calcOutputStates`): the filter's state less the output kept for the
+        horizon's time, fed back to every kept output and to now's."""
+        error = self.x - np.concatenate(kept)
+        self._sum_error += error
+        k = dt / max(TAU_OUTPUT, dt)
+        shift = k * error + 0.1 * k * k * self._sum_error
+        self._kept = deque((p + shift[:3], v + shift[3:]) for p, v in self._kept)
+        self._now = (self._now[0] + shift[:3], self._now[1] + shift[3:])
 
     # -- heading -----------------------------------------------------------------------------------------------
 
@@ -173,17 +197,17 @@ class Estimator:
         if kind == "pos":
             self.glitching = not accepted
             if accepted:
-                self._rejected_since = None
-            else:
-                self._rejected_since = self._rejected_since if self._rejected_since is not None else self.t_h
-                if self.t_h - self._rejected_since >= RESET_AFTER:      # EKF3 gives up on its own estimate
-                    self.x[idx] = z
-                    self.P[idx, :] = 0.0
-                    self.P[:, idx] = 0.0
-                    self.P[np.ix_(idx, idx)] = np.eye(len(idx)) * r
-                    self.resets += 1
-                    self._rejected_since, self.glitching = None, False
-                    self.aided_at = item.arrival
+                self._passed_at = self.t_h
+            elif self.t_h - self._passed_at > self.retry:      # EKF3 gives up on its own estimate
+                self.x[idx] = z
+                self.P[idx, :] = 0.0
+                self.P[:, idx] = 0.0
+                self.P[np.ix_(idx, idx)] = np.eye(len(idx)) * r
+                self._kept = deque((np.r_[z, p[2]], v) for p, v in self._kept)
+                self._now = (np.r_[z, self._now[0][2]], self._now[1])
+                self.resets += 1
+                self._passed_at, self.glitching = self.t_h, False
+                self.aided_at = item.arrival
                 return
         if not accepted:
             return
@@ -194,18 +218,6 @@ class Estimator:
         self.nis.append((kind, nis, len(idx)))
         if kind in ("vel", "pos"):
             self.aided_at = max(self.aided_at, item.arrival)
-
-    def _output(self, r_now: np.ndarray) -> None:
-        """The horizon's state predicted to now through the IMU samples since (mean only)."""
-        p, v = self.x[:3], self.x[3:]
-        if self._buffer:
-            dts = np.fromiter((b[1] for b in self._buffer), float, len(self._buffer))
-            dvs = np.array([b[2] for b in self._buffer])
-            after = np.cumsum(dts[::-1])[::-1] - dts          # time from the end of each sample to now
-            p = p + v * dts.sum() + ((0.5 * dts + after)[:, None] * dvs).sum(axis=0)
-            v = v + dvs.sum(axis=0)
-        eta = np.array([p[0], p[1], p[2], self.roll, self.pitch, self.psi])
-        self.output = (eta, np.concatenate((r_now.T @ v, self.rates)))
 
     # -- reports -----------------------------------------------------------------------------------------------
 

@@ -20,7 +20,7 @@ from rov_mav.model.environment import load_environment
 from rov_mav.model.navigation import PRESETS, Dvl, Ugps, load_navigation
 from sim_bridge import navigation as ekf_status
 from sim_bridge.config import BridgeConfig
-from sim_bridge.estimator import Estimator
+from sim_bridge.estimator import RETRY_NO_VEL, TAU_OUTPUT, Estimator
 from sim_bridge.sensors import ImuSample, Sensors, UgpsFix
 from sim_bridge.server import Bridge
 from sim_bridge.source_messages import DVL_SOURCE, UGPS_SOURCE
@@ -75,7 +75,9 @@ def test_ugps_estimate_lags_the_truth_by_the_latency_the_ekf_does_not_know_of(ek
     assert 0.01 < across < 0.3                                     # noisy, bounded
 
 
-def test_a_late_fix_after_a_dropout_steps_the_estimate_when_it_arrives():
+def test_a_late_fix_after_a_dropout_moves_the_estimate_from_when_it_arrives_over_the_output_time_constant():
+    """EKF3's output predictor (`calcOutputStates`): the fix is fused at the horizon when it arrives, and what the
+    vehicle reports follows the filter over about EK3_TAU_OUTPUT (0.25 s), not in one step."""
     nav = replace(PRESETS["ugps"], ugps=clean_ugps(ekf_delay=0.2))
     eta, nu = np.array([0, 0, 5.0, 0, 0, 0]), np.zeros(6)
     est = Estimator(nav, 0.0, eta, nu)
@@ -87,12 +89,29 @@ def test_a_late_fix_after_a_dropout_steps_the_estimate_when_it_arrives():
             est.feed(UgpsFix(t - 0.4, t, 0.0, 0.0, 0.1, True))
         est.feed(ImuSample(t, dt, np.array([0.02 * dt, 0, 0]), np.zeros(3), 0.0, 0.0))
         outputs.append(est.output[0][0])
-    jumps = np.abs(np.diff(outputs))
-    assert outputs[398] > 0.5                                       # drifted on the IMU alone: 0.5 a t^2 ~ 0.6 m
-    k = int(np.argmax(jumps))
-    assert k == 398                   # on arrival: stamped 0.2 s back (the delay EKF3 assumes), the horizon's time
-    assert jumps[k] > 0.3 and np.delete(jumps, k).max() < 0.05      # one step, the rest smooth
-    assert abs(outputs[k + 1]) < 0.25 * abs(outputs[k])
+    steps = np.diff(outputs)
+    correction = outputs[398]
+    assert correction > 0.5                                         # drifted on the IMU alone: 0.5 a t^2 ~ 0.6 m
+    assert np.all(steps[:398] >= 0) and steps[398] < 0              # back from the sample it arrived with
+    assert np.abs(steps).max() < 0.1 * correction                   # spread, not a step
+    assert outputs[398 + int(round(2 * TAU_OUTPUT / dt))] < 0.3 * correction    # mostly taken in within 2 tau
+
+
+def test_a_fix_after_the_retry_time_without_one_that_fails_its_gate_resets_the_position_at_once():
+    """No fix passed for the retry time (7 s without the DVL) and the next one fails the innovation gate: EKF3 resets
+    its position to it (`FuseVelPosNED`, `ResetPosition`), the report moves at once, and a reset is counted."""
+    nav = replace(PRESETS["ugps"], ugps=clean_ugps(ekf_delay=0.2))
+    est = Estimator(nav, 0.0, np.array([0, 0, 5.0, 0, 0, 0]), np.zeros(6))
+    dt = 0.02
+    outputs = []
+    for k in range(1, 501):
+        t = k * dt
+        if k == 400:                                                # 8 s in: a fix 30 m away, far outside the gate
+            est.feed(UgpsFix(t - 0.4, t, 30.0, 0.0, 0.1, True))
+        est.feed(ImuSample(t, dt, np.zeros(3), np.zeros(3), 0.0, 0.0))
+        outputs.append(est.output[0][0])
+    assert est.resets == 1 and est.retry == RETRY_NO_VEL
+    assert outputs[398] == pytest.approx(0.0, abs=1e-6) and outputs[399] == pytest.approx(30.0, abs=1e-6)
 
 
 def test_dvl_dead_reckoning_drifts_with_the_distance_travelled():

@@ -89,7 +89,8 @@ def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path)
     port, checker_port = free_port(), free_port()
     log, metrics = folder / "log", folder / "metrics.json"
     runner = subprocess.Popen([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission), "--log", str(log),
-                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120", *ROWS[row]],
+                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120", *ROWS[row],
+                               *args.run_args.split()],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     bridge = recorder = None
     end, output = "?", ""
@@ -154,12 +155,15 @@ def main() -> None:
     parser.add_argument("--rows", default=",".join(ROWS), help=f"of {', '.join(ROWS)}")
     parser.add_argument("--seeds", default="1,2")
     parser.add_argument("--speedup", type=float, default=5.0)
+    parser.add_argument("--run-args", default="", help="more `rov-mav run` options for every row, e.g. "
+                                                         "\"--velocity-blend 0.3\"")
     parser.add_argument("--keep", type=Path, help="keep every run's log and output in this folder")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     seeds = [int(s) for s in args.seeds.split(",")]
     print(f"bridge --speedup {args.speedup:g}, seeds {args.seeds}, SERVO_OUTPUT_RAW at {OUTPUT_RATE:g} Hz on a "
-          f"checker's link; load average before: {os.getloadavg()[0]:.1f}", flush=True)
+          f"checker's link; run options added: {args.run_args or 'none'}; load average before: "
+          f"{os.getloadavg()[0]:.1f}", flush=True)
     print("| mission | navigation | controller / estimator | RMS vs truth (cm) | max vs truth (cm) | RMS vs estimate "
           "(cm) | estimate's own RMS vs truth (cm) | heading RMS (deg) | activity (us/s) | rate (Hz) | completed | "
           "end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)

@@ -160,10 +160,11 @@ def configure(p: argparse.ArgumentParser) -> None:
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
     p.add_argument("--approach-speed", type=number(0.0, MAX_SPEED, low_open=True), default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
-    p.add_argument("--velocity-blend", type=number(0.0, MAX_VELOCITY_BLEND), default=1.0, metavar="RAD_S",
-                   help="below this bandwidth the velocity the law uses is the rate of the reported position, above "
-                        "it the reported velocity (an estimator's position and velocity disagree by cm/s over "
-                        "seconds); 0 uses the reported velocity as it is (default 1)")
+    p.add_argument("--velocity-blend", type=number(0.0, MAX_VELOCITY_BLEND), default=0.2, metavar="RAD_S",
+                   help="bandwidth of the blend of the reported position and velocity the law flies on: motion the "
+                        "velocity shows is taken at once, the position's corrections (an acoustic fix's, every "
+                        "quarter second) below this, and a steady disagreement of the two is learnt; 0 uses both as "
+                        "reported (default 0.2)")
     p.add_argument("--pwm-rounding", choices=["diffuse", "nearest"], default="diffuse",
                    help="whole-microsecond PWMs and thruster dead bands: carry what a tick's PWM could not give to the "
                         "next tick, so thrust averages to what was asked (diffuse, default), or round each tick alone")

@@ -272,7 +272,7 @@ class FlightLoop:
             eta, nu, t_act = state.eta, state.nu, now + io.session.round_trip.seconds
             if fresh and self.thrusters is not None:     # on the vehicle's own state: not on a model's estimate
                 jumps = io.decoder.jumps.jumps
-                if jumps and jumps[-1].t == state.t:     # this sample's estimate jumped: not a thruster's doing
+                if jumps and jumps[-1].seen == state.t:  # the estimate jumped: not a thruster's doing
                     self.thrusters.health.estimate_jumped(state.t)
                 vehicle = io.vehicle_state
                 self.thrusters.observe(state.t, np.concatenate([vehicle.eta, vehicle.nu]))

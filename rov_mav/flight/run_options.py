@@ -32,7 +32,7 @@ class RunOptions:
     stale_periods: float = 3.0         # telemetry older than this many periods -> neutral
     link_timeout: float = 2.0          # vehicle s without telemetry -> abort
     approach_speed: float = 0.2        # m/s to the mission's start pose
-    velocity_blend: float = 1.0        # rad/s: below it the law's velocity is the position's rate (0: as reported)
+    velocity_blend: float = 0.2        # rad/s: the law's position and velocity blend (`estimate_blend`; 0: as reported)
     output: str = THRUSTERS            # THRUSTERS: RC overrides on RCIN passthrough; MOTOR_TEST: ArduSub's motor test
     predict: bool = True               # the law acts on the state predicted to when its command acts
     thruster_check: bool = True        # watch the thrusters for doing what they are told (`flight.thruster_watch`)

@@ -1,10 +1,10 @@
 """The state the law needs, (t, eta, nu), decoded from ArduSub's telemetry on the vehicle's own clock.
 
 eta = [x, y, z (LOCAL_POSITION_NED, less a jump of the estimate still being taken in: `EstimateJumps`), roll,
-pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity
-(blended with the position's rate below `velocity_blend` rad/s: `VelocityBlend`) rotated into the body frame, and
-ATTITUDE's body rates. The older of the two messages is brought forward to the newer one's time by its own rates
-(the reported NED velocity, the body rates through T(Theta)), so that position and attitude are of one instant.
+pitch, yaw (ATTITUDE)]; nu = [R^T v_NED, p, q, r]: the NED velocity rotated into the body frame, and ATTITUDE's
+body rates; the position and the NED velocity blended below `velocity_blend` rad/s (`EstimateBlend`). The older of
+the two messages is brought forward to the newer one's time by its own rates (the reported NED velocity, the body
+rates through T(Theta)), so that position and attitude are of one instant.
 A sample is complete once both messages arrived since the last one with time_boot_ms within
 half a stream period of each other: a message whose partner was lost is dropped, so one lost packet does not pair
 every later position with the next period's attitude. Streams exactly half a period apart (the built-in vehicle's)
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rov_mav.flight.estimate_jumps import EstimateJumps
-from rov_mav.flight.velocity_blend import VelocityBlend
+from rov_mav.flight.estimate_blend import EstimateBlend
 from rov_mav.model.dynamics import euler_rate_matrix, rotation
 
 STATE_MESSAGES = ("ATTITUDE", "LOCAL_POSITION_NED")
@@ -41,7 +41,7 @@ class StateDecoder:
     """Feed it the vehicle's messages; `update` says when a new state is complete, `state` decodes it."""
 
     def __init__(self, velocity_blend: float = 0.0, steady: bool = False):
-        self.blend = VelocityBlend(velocity_blend)
+        self.blend = EstimateBlend(velocity_blend)
         self.jumps = EstimateJumps() if steady else None   # the estimate's jumps taken in at a flyable pace (a run)
         self.voltage: float | None = None     # V, from SYS_STATUS
         self.servo: np.ndarray | None = None  # (8,) SERVO1..8 PWM as the vehicle reports them
@@ -111,9 +111,11 @@ class StateDecoder:
         eta[:3] += reported_v * (t - t_position)
         eta[3:] += euler_rate_matrix(eta) @ rates * (t - t_attitude)
         reported = eta[:3].copy()
+        v_seen = reported_v
         if self.jumps is not None:
             eta[:3] = self.jumps.steady(t, eta[:3], reported_v)
-        v_ned = self.blend.update(t, eta[:3], reported_v)
+            v_seen = reported_v + self.jumps.catch_up
+        eta[:3], v_ned = self.blend.update(t, eta[:3], v_seen)
         v_body = rotation(eta).T @ v_ned
         nu = np.array([*v_body, a.rollspeed, a.pitchspeed, a.yawspeed], dtype=float)
         return State(t, eta, nu, received, reported)
