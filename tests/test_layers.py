@@ -1,4 +1,11 @@
-"""The layers DESIGN.md describes, enforced: every import in the package points down (or sideways where allowed)."""
+"""The package's layering, enforced: every import points down (or sideways where allowed).
+
+The rule: a functional core (model, control, mission) of pure functions on arrays, each taking an optional leading
+batch axis so that one vehicle and a swarm of particles run the same code, and around it a thin imperative shell
+(MAVLink I/O, clocks, Rerun, the command line). Each folder is one layer; a layer imports only the layers below it
+(MAY_IMPORT) and the foundation modules; only the command line (TOP) may import everything, and nothing imports
+it; the core imports none of the shell's libraries (SHELL_LIBRARIES).
+"""
 
 from __future__ import annotations
 
