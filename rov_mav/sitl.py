@@ -1,8 +1,9 @@
 """ArduPilot's own ArduSub SITL as a child process: for the end-to-end tests and the tools that fly missions on it.
 
-The binary is the user's (`ARDUSUB_SITL`, e.g. ../shared/sitl/ardusub, with ArduPilot's `sub-6dof.parm` next to it
-or named by `ARDUSUB_SITL_DEFAULTS`). Each instance runs in its own scratch directory (it writes eeprom.bin and
-logs/ there) on a free instance number (SERIAL0 on TCP 5760+10N, SERIAL1 on 5762+10N), with its parameters wiped
+The binary is the user's (`ARDUSUB_SITL`: e.g. build/sitl/bin/ardusub in an ArduPilot tree built with `./waf
+configure --board sitl && ./waf sub`, with ArduPilot's `sub-6dof.parm` next to it or named by
+`ARDUSUB_SITL_DEFAULTS`). Each instance runs in its own scratch directory (it writes eeprom.bin and logs/ there)
+on a free instance number (SERIAL0 on TCP 5760+10N, SERIAL1 on 5762+10N), with its parameters wiped
 at boot, and is ended by its PID (with SIGKILL if it ignores SIGTERM, which a SITL stuck draining a dead client's
 TCP queue can do). Extra parameters go in a second defaults file, applied after ArduPilot's.
 """

@@ -9,7 +9,7 @@ Disabled".
 
 Which checks run (`AP_Arming::check_enabled`): on 4.5 ARMING_CHECK, a bitmask of checks to perform (bit 0 all, the
 default 1); on 4.7 ARMING_SKIPCHK, a bitmask of checks to skip (default 0: every one runs; -1 skips them all), the
-same bit for the same check (`../shared/reference/ardusub-4.7.md`, ArduPilot PR #31568). "Every check off" on 4.7 is
+same bit for the same check (the parameter's rename and inversion is ArduPilot PR #31568). "Every check off" on 4.7 is
 taken as every bit set (the 4.7 source was not at hand).
 
 The built-in vehicle's IMU, compass and RC are always healthy; what it can fail is what its faults reach:

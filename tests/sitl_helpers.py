@@ -21,8 +21,8 @@ def sitl_binary() -> Path:
     except launcher.SitlError as exc:
         pytest.fail(str(exc))
     if binary is None:
-        pytest.skip(f"{launcher.SITL_ENV} is not set: point it at an ArduSub SITL binary (e.g. ../shared/sitl/ardusub) "
-                    "to run the tests against real ArduSub")
+        pytest.skip(f"{launcher.SITL_ENV} is not set: point it at an ArduSub SITL binary (ArduPilot's "
+                    "build/sitl/bin/ardusub) to run the tests against real ArduSub")
     return binary
 
 

@@ -1,4 +1,11 @@
-"""The layers DESIGN.md describes, enforced: every import in the package points down (or sideways where allowed)."""
+"""The package's layering, enforced: every import points down (or sideways where allowed).
+
+The rule: a functional core (model, control, mission) of pure functions on arrays, each taking an optional leading
+batch axis so that one vehicle and a swarm of particles run the same code, and around it a thin imperative shell
+(MAVLink I/O, clocks, Rerun, the command line). Each folder is one layer; a layer imports only the layers below it
+(MAY_IMPORT) and the foundation modules; only the command line (TOP) may import everything, and nothing imports
+it; the core imports none of the shell's libraries (SHELL_LIBRARIES).
+"""
 
 from __future__ import annotations
 
@@ -22,7 +29,7 @@ MAY_IMPORT = {
     "rov_mav.review": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline", "rov_mav.flight",
                        "rov_mav.telemetry"},
 }
-FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing", "rov_mav.sitl"}
+FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing", "rov_mav.sitl", "rov_mav.shipped"}
 # The top: the command line and one module per subcommand; it may import any layer, and no layer may import it.
 TOP = ("rov_mav.cli", "rov_mav.commands")
 # Libraries that belong to the shell: none of them may be imported below it.

@@ -248,10 +248,10 @@ def test_simulate_flies_the_shipped_survey_plan(tmp_path):
     assert (tmp_path / "fig" / "path3d.png").exists()
 
 
-@pytest.mark.parametrize("args", [["--mission-from-vehicle"], [], ["x.plan", "--mission-from-vehicle",
+@pytest.mark.parametrize("args", [["--mission-from-vehicle"], [], ["square", "--mission-from-vehicle",
                                                                     "--target", "udp:127.0.0.1:14550"]])
 def test_run_wants_one_mission_source_and_a_vehicle_to_download_from(tmp_path, args):
     r = _cli("run", *args, "--rerun", "off", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.strip() == ("rov-mav run: error: give a mission file, or --mission-from-vehicle with --target "
-                                "(the built-in vehicle starts with no mission)")
+    assert r.stderr.strip() == ("rov-mav run: error: give a mission (a shipped mission's name or a file), or "
+                                "--mission-from-vehicle with --target (the built-in vehicle starts with no mission)")

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
 from importlib import resources
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +19,6 @@ from rov_mav.model.thrusters import (
 )
 from rov_mav.model.vehicle import load_vehicle
 
-REFERENCE_CSV = Path("/work/shared/reference/t200/t200_performance.csv")
 PACKAGE_CSV = resources.files("rov_mav") / "data" / "t200_performance.csv"
 SHEET_VOLTAGES = [10.0, 12.0, 14.0, 16.0, 18.0, 20.0]
 VOLTAGES = SHEET_VOLTAGES + [11.1, 14.8, 15.6, 16.8, 19.3]
@@ -116,11 +115,23 @@ def test_ardusub_mixer_consistent_with_B(B, factor, axis, sign):
 # ---- T200 map ------------------------------------------------------------------------------------------------
 
 
-def test_package_csv_is_the_reference(raw):
+# SHA-256 of rov_mav/data/t200_performance.csv as checked byte for byte against Blue Robotics' T200 performance
+# data (September 2019 release): a change to the file must be deliberate.
+T200_SHA256 = "1a40df4c1b5653f3d67cff1893fc5db2d2385bdfb832be9913c88ba770117ab6"
+
+
+def test_package_csv_is_blue_robotics_data(raw):
+    """Blue Robotics' sheets as released: 201 PWMs (1100..1900 us every 4 us) at each of 6 voltages, thrust in
+    kgf and in N (x 9.80665), reverse below 1500 us; the file unchanged since it was checked against the release."""
+    assert raw.dtype.names == ("voltage_v", "pwm_us", "rpm", "current_a", "power_w", "force_kgf", "force_n")
     assert len(raw) == 6 * 201
-    if not REFERENCE_CSV.exists():
-        pytest.skip("shared reference data not present")
-    assert PACKAGE_CSV.read_text() == REFERENCE_CSV.read_text()
+    for voltage in SHEET_VOLTAGES:
+        sheet = raw[raw["voltage_v"] == voltage]
+        np.testing.assert_array_equal(sheet["pwm_us"], np.arange(1100, 1901, 4))
+        pwm, force = sheet["pwm_us"], sheet["force_n"]
+        assert np.all(force[pwm < 1460] < 0) and np.all(force[pwm > 1540] > 0)
+    np.testing.assert_allclose(raw["force_n"], raw["force_kgf"] * 9.80665, atol=6e-4)
+    assert hashlib.sha256(PACKAGE_CSV.read_bytes()).hexdigest() == T200_SHA256
 
 
 def test_load_is_cached(t200):

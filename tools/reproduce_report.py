@@ -2,7 +2,7 @@
 
 Runs baseline, constant-rate and fuzzy-rate adaptation on the line (Eq. 3.1, tau_d of Eq. 3.2) and on the square,
 each with the controller's model equal to the plant and 20 % off it (plant mass, inertia, added mass and damping
-x1.2 — ERRATA "What adaptation buys"). Writes PNG figures and `table.md` to the output folder (default
+x1.2 — docs/errata.md, "What adaptation buys"). Writes PNG figures and `table.md` to the output folder (default
 docs/report). Run:  .venv/bin/python tools/reproduce_report.py [--out DIR]
 """
 

@@ -14,7 +14,7 @@ runner or SITL is sometimes descheduled, and the vehicle then keeps its last com
 
     nice .venv/bin/python tools/sitl_square.py [--runs 2] [--speedup 2] [--guided 10] [--param NAME=VALUE ...]
                                                [--mission missions/square.yaml] [--out out/sitl] [-- RUN OPTIONS]
-e.g. `-- --vehicle my_vehicle.yaml --controller constant`. SITL from ARDUSUB_SITL (e.g. ../shared/sitl/ardusub).
+e.g. `-- --vehicle my_vehicle.yaml --controller constant`. SITL from ARDUSUB_SITL (ArduPilot's build/sitl/bin/ardusub).
 """
 
 from __future__ import annotations
@@ -212,7 +212,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sitl_square: {exc}", file=sys.stderr)
         return 2
     if binary is None:
-        print("sitl_square: set ARDUSUB_SITL to an ArduSub SITL binary (e.g. ../shared/sitl/ardusub)", file=sys.stderr)
+        print("sitl_square: set ARDUSUB_SITL to an ArduSub SITL binary (ArduPilot's build/sitl/bin/ardusub)",
+              file=sys.stderr)
         return 2
     label = args.label or (f"GUIDED {args.guided:g} Hz" if args.guided else "rov-mav " + " ".join(run_options))
     stamp = time.strftime("%Y%m%d-%H%M%S")

@@ -7,9 +7,17 @@ import json
 import math
 import sys
 
-from rov_mav.commands.arguments import number, output_file, output_folder, require_writable
+from rov_mav.commands.arguments import (
+    mission_file,
+    number,
+    output_file,
+    output_folder,
+    require_writable,
+    vehicle_file,
+)
 from rov_mav.commands.common import (
     MISSION_HELP,
+    VEHICLE_HELP,
     add_plan_options,
     add_rerun_option,
     check_rerun_output,
@@ -38,10 +46,10 @@ A truncated or damaged log is read as far as it goes: the summary says where (by
 
 EPILOG = """\
 examples:
-  rov-mav run missions/square.yaml --log out/square/log && rov-mav analyze out/square/log
-  rov-mav analyze flight.tlog                                   # a pilot's dive, or ArduSub AUTO
-  rov-mav analyze flight.tlog --mission missions/square.yaml --mission-start 812.4
-  rov-mav analyze 00000042.BIN --mission missions/square.yaml   # the vehicle's own log of a run
+  rov-mav run square --log out/square/log && rov-mav analyze out/square/log
+  rov-mav analyze flight.tlog                                         # a pilot's dive, or ArduSub AUTO
+  rov-mav analyze flight.tlog --mission square --mission-start 812.4  # measured against the shipped square
+  rov-mav analyze 00000042.BIN --mission square                       # the vehicle's own log of a run
 
 exit status: 0 reviewed (a damaged or truncated log too, with a warning); 2 nothing usable could be read, or bad
 arguments.
@@ -53,12 +61,14 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("path", metavar="PATH", help="a run's --log folder, a telemetry log (.tlog), or the vehicle's own "
                                                 "DataFlash log (.BIN)")
-    p.add_argument("--mission", metavar="FILE", help=f"measure the dive against this {MISSION_HELP}")
+    p.add_argument("--mission", type=mission_file, metavar="NAME|FILE",
+                   help=f"measure the dive against this {MISSION_HELP}")
     p.add_argument("--mission-start", type=number(0.0), metavar="S",
                    help="vehicle seconds since boot at which the mission started (default: as the rov-mav run "
                         "announced it, else the first arming)")
     add_plan_options(p)
-    p.add_argument("--vehicle", metavar="FILE", help="vehicle YAML drawn in the recording (default: BlueROV2 Heavy)")
+    p.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
+                   help=f"the vehicle drawn in the recording: {VEHICLE_HELP} (default: bluerov2_heavy)")
     p.add_argument("--out", type=output_folder, metavar="DIR",
                    help="folder for the figures and recording (default: out/analyze-NAME)")
     p.add_argument("--metrics", type=output_file, metavar="FILE",

@@ -1,5 +1,5 @@
 """Command-line values checked where they enter: argparse types for numbers in range, MAVLink ids, connection
-strings and output paths.
+strings, shipped file names and output paths.
 
 A bad value is refused by argparse before anything runs, in one line naming the option (exit status 2, see
 `rov_mav.cli`). Output paths given by default (out/...) are checked with `require_writable` the same way.
@@ -16,6 +16,7 @@ import stat
 from collections.abc import Callable
 from pathlib import Path
 
+from rov_mav import shipped
 from rov_mav.config import ConfigError
 from sim_bridge.link import LinkError, parse_endpoint
 
@@ -87,6 +88,23 @@ def lat_lon(text: str) -> tuple[float, float]:
     if not (abs(lat) <= 90 and abs(lon) <= 180):
         raise argparse.ArgumentTypeError(f"{text}: latitude within +-90, longitude within +-180 degrees")
     return lat, lon
+
+
+# -- input files --------------------------------------------------------------------------------------------------
+
+def shipped_file(kind: str) -> Callable[[str], str]:
+    """An argparse type: a path as given, or the name of a shipped file of `kind` (`rov_mav.shipped.resolve`)."""
+    def parse(text: str) -> str:
+        try:
+            return shipped.resolve(kind, text)
+        except ConfigError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return parse
+
+
+mission_file = shipped_file("mission")
+scenarios_file = shipped_file("scenario set")
+vehicle_file = shipped_file("vehicle")
 
 
 # -- connection strings -------------------------------------------------------------------------------------------

@@ -12,12 +12,21 @@ import json
 import re
 from pathlib import Path
 
-from rov_mav.commands.arguments import cluster_address, count, output_folder, require_writable
+from rov_mav.commands.arguments import (
+    cluster_address,
+    count,
+    mission_file,
+    output_folder,
+    require_writable,
+    scenarios_file,
+    vehicle_file,
+)
+from rov_mav import shipped
 from rov_mav.control.controller import KINDS
 
-DEFAULT_MISSIONS = ("missions/line.yaml", "missions/square.yaml")
-DEFAULT_TRAINING = "missions/scenarios/robust_dive.yaml"
-DEFAULT_HELD_OUT = "missions/scenarios/bench.yaml"
+DEFAULT_MISSIONS = ("line", "square")      # shipped missions and scenario sets, by name (`rov-mav missions`)
+DEFAULT_TRAINING = "robust_dive"
+DEFAULT_HELD_OUT = "bench"
 DEFAULT_BUDGET = (30, 20)
 MAX_PARTICLES = 10_000
 MAX_ITERATIONS = 100_000
@@ -59,11 +68,13 @@ def configure(p: argparse.ArgumentParser) -> None:
                      "of the tune as well as the noise's.")
     p.add_argument("--controllers", type=controller_names, nargs="+", metavar="NAME",
                    help=f"controllers to compare, space- or comma-separated (default: all: {', '.join(BENCH_KINDS)})")
-    p.add_argument("--missions", nargs="+", metavar="FILE",
-                   help=f"mission files (YAML or .plan; default: {' '.join(DEFAULT_MISSIONS)})")
-    p.add_argument("--scenarios", metavar="FILE", default=DEFAULT_HELD_OUT,
-                   help=f"held-out scenarios the controllers are judged on (default {DEFAULT_HELD_OUT})")
-    p.add_argument("--training", metavar="FILE", default=DEFAULT_TRAINING,
+    p.add_argument("--missions", nargs="+", type=mission_file, metavar="NAME|FILE",
+                   help="shipped missions by name or mission files (YAML or .plan); `rov-mav missions` lists the "
+                        f"shipped ones (default: {' '.join(DEFAULT_MISSIONS)})")
+    p.add_argument("--scenarios", type=scenarios_file, metavar="NAME|FILE", default=DEFAULT_HELD_OUT,
+                   help="held-out scenarios the controllers are judged on: a shipped set's name or a scenarios YAML "
+                        f"(default {DEFAULT_HELD_OUT})")
+    p.add_argument("--training", type=scenarios_file, metavar="NAME|FILE", default=DEFAULT_TRAINING,
                    help=f"training scenarios the controllers are tuned on (default {DEFAULT_TRAINING})")
     p.add_argument("--seeds", type=count(MAX_SEEDS), default=5,
                    help="noise seeds per held-out scenario (default 5)")
@@ -80,8 +91,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cluster", type=cluster_address, metavar="ADDR",
                    help="tune on Dask: local:N (a LocalCluster of N processes) or tcp://HOST:PORT; the held-out "
                         "runs stay in process")
-    p.add_argument("--vehicle", metavar="FILE",
-                   help="the controllers' vehicle model YAML (default: the shipped BlueROV2 Heavy)")
+    p.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
+                   help="the controllers' vehicle model: a shipped vehicle's name or a vehicle YAML (default: "
+                        "bluerov2_heavy)")
     p.set_defaults(func=main)
 
 
@@ -94,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.offline.scenarios import load_scenarios
 
     controllers = list(dict.fromkeys(n for group in (args.controllers or [list(BENCH_KINDS)]) for n in group))
-    missions = [load(path) for path in (args.missions or DEFAULT_MISSIONS)]
+    missions = [load(path) for path in (args.missions or [mission_file(name) for name in DEFAULT_MISSIONS])]
     names = [m.name for m in missions]
     if len(set(names)) < len(names):
         raise ConfigError(f"--missions: two missions named '{next(n for n in names if names.count(n) > 1)}'")
@@ -120,7 +132,8 @@ def main(args: argparse.Namespace) -> int:
         result = bench.run_bench(missions, controllers, model, training, held_out, args.seeds, options, backend,
                                  args.threads, bar.update, args.tunes, navigation_errors)
     interval = "" if args.tunes == 1 else f", over the {args.tunes} tunes"
-    settings = {"controllers": controllers, "missions": names, "training": args.training, "held_out": args.scenarios,
+    settings = {"controllers": controllers, "missions": names, "training": shipped.label(args.training),
+                "held_out": shipped.label(args.scenarios),
                 "seeds": args.seeds, "particles": particles, "iterations": iterations, "tunes": args.tunes,
                 "swarm_seeds": list(bench.swarm_seeds(args.tunes)),
                 "interval": f"Student-t {bench.LEVEL:.0%} interval of the mean{interval}",

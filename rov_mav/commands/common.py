@@ -9,7 +9,14 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rov_mav.commands.arguments import lat_lon, plan_speed, require_writable, six_floats, unwritable
+from rov_mav.commands.arguments import (
+    lat_lon,
+    plan_speed,
+    require_writable,
+    six_floats,
+    unwritable,
+    vehicle_file,
+)
 from rov_mav.config import ConfigError
 from rov_mav.control.controller import KINDS, ControllerSettings, load_settings
 
@@ -22,9 +29,10 @@ if TYPE_CHECKING:   # the Rerun SDK loads only when a command opens a recording 
     from rov_mav.mission.missions import Mission
     from rov_mav.model.vehicle import Vehicle
 
-MISSION_HELP = ("mission file: our YAML (e.g. missions/square.yaml), a QGroundControl plan (e.g. "
-                "missions/under_ice_survey.plan), or a YAML naming a plan (plan: FILE.plan) with its environment "
-                "and limits")
+MISSION_HELP = ("mission: a shipped mission's name (e.g. square; `rov-mav missions` lists them) or a file: our "
+                "YAML (e.g. my_square.yaml), a QGroundControl plan (e.g. survey.plan), or a YAML naming a plan "
+                "(plan: FILE.plan) with its environment and limits")
+VEHICLE_HELP = "a shipped vehicle's name (`rov-mav vehicles` lists them) or a vehicle YAML file"
 
 
 RUN_ONLY = ("ardusub-guided",)      # no law of ours: `run` streams the reference to the vehicle's controller
@@ -103,8 +111,8 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--k1", type=six_floats, metavar="A,B,C,D,E,F", help="k1 diagonal, overrides --gains")
     group.add_argument("--k2", type=six_floats, metavar="A,B,C,D,E,F", help="k2 diagonal, overrides --gains")
     group.add_argument("--fuzzy-rules", metavar="FILE", help="fuzzy rule base YAML (default: Appendix III)")
-    group.add_argument("--vehicle", metavar="FILE",
-                       help="the controller's vehicle model YAML (default: the shipped BlueROV2 Heavy)")
+    group.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
+                       help=f"the controller's vehicle model: {VEHICLE_HELP} (default: bluerov2_heavy)")
 
 
 def add_signing_options(parser: argparse.ArgumentParser, effect: str) -> None:

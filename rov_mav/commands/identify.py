@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.commands.arguments import number, output_file
-from rov_mav.commands.common import MISSION_HELP, add_plan_options, load_mission
+from rov_mav.commands.arguments import mission_file, number, output_file, vehicle_file
+from rov_mav.commands.common import MISSION_HELP, VEHICLE_HELP, add_plan_options, load_mission
 
 DESCRIPTION = """\
 Fit the vehicle model the controller uses to one or more run logs (`rov-mav run --log DIR`), ideally of
-missions/identify.yaml flown on the vehicle to identify, and write it as a vehicle file that --vehicle accepts.
+the shipped mission identify flown on the vehicle to identify, and write it as a vehicle file that --vehicle accepts.
 
 Fitted, as far as the logs can tell them apart: added mass, linear and quadratic damping (per DOF), buoyancy and
 its lever r_b - r_g, the thrusters' force per PWM (a scale on the vehicle file's curve, forward and reverse, and the
@@ -31,10 +31,10 @@ vehicle does. The thrusters' bench data set that level unless --net-buoyancy giv
 
 EPILOG = """\
 examples:
-  rov-mav run --target tcp:127.0.0.1:5760 missions/identify.yaml --log out/identify
+  rov-mav run --target tcp:127.0.0.1:5760 identify --log out/identify
   rov-mav identify out/identify --out my_rov.yaml
   rov-mav identify out/identify out/identify2 --net-buoyancy 2.5 --out my_rov.yaml
-  rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml --vehicle my_rov.yaml
+  rov-mav run --target tcp:127.0.0.1:5760 square --vehicle my_rov.yaml
 
 exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
 """
@@ -47,16 +47,16 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG",
                    help="run log directories (`rov-mav run --log DIR`), or the vehicle's own DataFlash logs (.BIN) "
                         "of runs (with --mission)")
-    p.add_argument("--mission", metavar="FILE",
+    p.add_argument("--mission", type=mission_file, metavar="NAME|FILE",
                    help=f"for a .BIN: the {MISSION_HELP}; its start is the one the run announced (logged by the "
                         "vehicle as a GCS: message), else --mission-start")
     p.add_argument("--mission-start", type=number(0.0), metavar="S",
                    help="for a .BIN: vehicle seconds since boot at which the mission started")
     add_plan_options(p)
     p.add_argument("--out", required=True, type=output_file, metavar="FILE", help="vehicle file to write")
-    p.add_argument("--vehicle", metavar="FILE",
-                   help="the prior: mass, inertia, geometry, and every value the logs cannot fit (default: the "
-                        "shipped BlueROV2 Heavy)")
+    p.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
+                   help=f"the prior: mass, inertia, geometry, and every value the logs cannot fit; {VEHICLE_HELP} "
+                        "(default: bluerov2_heavy)")
     p.add_argument("--net-buoyancy", type=number(-MAX_NET_BUOYANCY, MAX_NET_BUOYANCY), metavar="N",
                    help="buoyancy minus weight in N, measured (positive: it floats); fixes the level of all forces "
                         "so that the thrust scale can be fitted")

@@ -13,6 +13,7 @@ from pathlib import Path
 from rov_mav.commands.arguments import (
     count,
     mavlink_target,
+    mission_file,
     number,
     output_file,
     output_folder,
@@ -87,13 +88,14 @@ abort. Limits (the mission's `limits:` block, or the flags): depth, tracking err
 
 EPILOG = """\
 examples:
-  rov-mav run missions/square.yaml                              # the built-in simulated vehicle, real time
-  rov-mav run missions/square.yaml --speedup 10                 # the same, 10x faster than real time
-  rov-mav sim-bridge &  rov-mav run --target udp:127.0.0.1:14550 missions/square.yaml
-  rov-mav run --target tcp:127.0.0.1:5760 missions/square.yaml  # ArduSub SITL
-  rov-mav run --target udp:0.0.0.0:14550 --dry-run missions/square.yaml --log out/dry
-  rov-mav run --target udp:0.0.0.0:14550 --signing-passphrase TEXT missions/square.yaml   # a vehicle that signs
-  rov-mav run missions/under_ice_survey.plan --speedup 10        # a QGroundControl plan
+  rov-mav run square                                   # the shipped square, built-in simulated vehicle, real time
+  rov-mav run square --speedup 10                      # the same, 10x faster than real time
+  rov-mav run my_square.yaml --speedup 10              # a mission file (`rov-mav missions`: the shipped ones)
+  rov-mav sim-bridge &  rov-mav run --target udp:127.0.0.1:14550 square
+  rov-mav run --target tcp:127.0.0.1:5760 square       # ArduSub SITL
+  rov-mav run --target udp:0.0.0.0:14550 --dry-run square --log out/dry
+  rov-mav run --target udp:0.0.0.0:14550 --signing-passphrase TEXT square   # a vehicle that signs
+  rov-mav run survey.plan --speedup 10                 # a QGroundControl plan
   rov-mav run --target udp:127.0.0.1:14550 --mission-from-vehicle  # the mission uploaded to the vehicle
 
 exit status: 0 mission complete and the vehicle left safe; 1 aborted or refused (the reason is printed), or a
@@ -105,7 +107,7 @@ mission; 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
 
 def configure(p: argparse.ArgumentParser) -> None:
     p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
-    p.add_argument("mission", nargs="?", help=MISSION_HELP)
+    p.add_argument("mission", nargs="?", type=mission_file, help=MISSION_HELP)
     p.add_argument("--mission-from-vehicle", action="store_true",
                    help="instead of a file, fly the mission stored on the vehicle (uploaded with QGroundControl or "
                         "MAVProxy): downloaded with the MAVLink mission protocol, read as a plan's items; needs "
@@ -306,8 +308,8 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.model.vehicle import load_vehicle
 
     if (args.mission is None) != args.mission_from_vehicle or (args.mission_from_vehicle and args.target is None):
-        print("rov-mav run: error: give a mission file, or --mission-from-vehicle with --target (the built-in "
-              "vehicle starts with no mission)", file=sys.stderr)
+        print("rov-mav run: error: give a mission (a shipped mission's name or a file), or --mission-from-vehicle "
+              "with --target (the built-in vehicle starts with no mission)", file=sys.stderr)
         return 2
     mission = None if args.mission_from_vehicle else load_mission(args)
     limits = None if mission is None else _limits(args, mission, Limits)

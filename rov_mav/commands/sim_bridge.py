@@ -6,8 +6,8 @@ import argparse
 import signal
 import sys
 
-from rov_mav.commands.arguments import endpoint, number, seed, speedup
-from rov_mav.commands.common import add_signing_options, signing_key
+from rov_mav.commands.arguments import endpoint, mission_file, number, seed, speedup, vehicle_file
+from rov_mav.commands.common import VEHICLE_HELP, add_signing_options, signing_key
 from rov_mav.model.environment import load_environment
 from rov_mav.model.navigation import PRESET_NAMES, Navigation, NavigationError, load_navigation
 from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, load_vehicle_faults
@@ -50,7 +50,7 @@ EPILOG = """\
 examples:
   rov-mav sim-bridge                                  # sends to a ground station on udp 14550
   rov-mav sim-bridge --out udpout:127.0.0.1:14550 --listen tcpin:0.0.0.0:5760
-  rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment missions/square.yaml
+  rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --speedup 10 --environment square
   rov-mav sim-bridge --listen udpin:127.0.0.1:14550 --listen udpin:127.0.0.1:14551 --signing-passphrase TEXT
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --link-faults loss=0.2,delay=50ms,jitter=10ms --seed 3
   rov-mav sim-bridge --listen udpin:127.0.0.1:14551 --vehicle-faults thruster=3:dead@60s,leak@90s \
@@ -126,10 +126,12 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "connected client); repeatable, several links at once")
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="simulated time runs N times faster than the wall clock (default 1: real time)")
-    p.add_argument("--environment", metavar="FILE",
-                   help="disturbance, current and sensor noise: a mission file's environment: block, or a file "
-                        "holding just that block (default: still water, no noise)")
-    p.add_argument("--vehicle", metavar="FILE", help="vehicle parameter file (default: the shipped BlueROV2 Heavy)")
+    p.add_argument("--environment", type=mission_file, metavar="NAME|FILE",
+                   help="disturbance, current and sensor noise: the environment: block of a shipped mission (by "
+                        "name) or of a mission file, or a file holding just that block (default: still water, no "
+                        "noise)")
+    p.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
+                   help=f"the simulated vehicle: {VEHICLE_HELP} (default: bluerov2_heavy)")
     p.add_argument("--firmware", choices=FIRMWARES, default=DEFAULT_FIRMWARE,
                    help="ArduSub version whose parameter names to use: 4.7 (MAV_GCS_SYSID, MAV_SYSID, MAVn_* "
                         "stream rates) or 4.5 (SYSID_MYGCS, SYSID_THISMAV, SRn_*); default %(default)s")

@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 
-from rov_mav.commands.arguments import number, output_file, output_folder, require_writable, seed
+from rov_mav.commands.arguments import (
+    mission_file,
+    number,
+    output_file,
+    output_folder,
+    require_writable,
+    seed,
+    vehicle_file,
+)
 from rov_mav.commands.common import (
     MISSION_HELP,
     add_controller_options,
@@ -24,12 +32,12 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.description = ("Run the closed loop (mission reference -> law + adaptation -> 6-DOF plant) offline at "
                      "100 Hz, using the mission file's `environment` block (disturbance, current, noise; a .plan: still water). "
                      "Writes figures (PNG) to --out and metrics (JSON) to --metrics.")
-    p.add_argument("mission", help=MISSION_HELP)
+    p.add_argument("mission", type=mission_file, help=MISSION_HELP)
     add_plan_options(p)
     add_controller_options(p)
-    p.add_argument("--plant-params", metavar="FILE",
-                   help="vehicle YAML for the simulated plant when it differs from the controller's model "
-                        "(mismatch studies); default: the controller's model")
+    p.add_argument("--plant-params", type=vehicle_file, metavar="NAME|FILE",
+                   help="the simulated plant's vehicle (a shipped vehicle's name or a vehicle YAML) when it differs "
+                        "from the controller's model (mismatch studies); default: the controller's model")
     p.add_argument("--duration", type=number(0.0, MAX_DURATION, low_open=True), metavar="S",
                    help=f"simulated seconds, at most {MAX_DURATION:g} (default: the mission's)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise (default 0)")

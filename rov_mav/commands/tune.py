@@ -16,10 +16,12 @@ import yaml
 from rov_mav.commands.arguments import (
     cluster_address,
     count,
+    mission_file,
     number,
     output_file,
     output_folder,
     require_writable,
+    scenarios_file,
     seed,
 )
 from rov_mav.commands.common import (
@@ -67,7 +69,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                      "`simulate --gains` accepts, the convergence figure (Fig. IV-1) and the tuned gains' metrics "
                      "against the starting gains (default: the controller's shipped gains; `--gains report`: the "
                      "report's Eqs. 4.1-4.2) on the mission.")
-    p.add_argument("mission", help=MISSION_HELP + "; the report's tuning run is missions/line.yaml")
+    p.add_argument("mission", type=mission_file, help=MISSION_HELP + "; the report's tuning run is line")
     add_plan_options(p)
     add_controller_options(p)
     g = p.add_argument_group("swarm")
@@ -94,8 +96,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     c.add_argument("--cost", choices=tuning.COSTS, default="tracking",
                    help="tracking (default): 1 cm / 1 degree of error and a corrective wrench of one axis "
                         "capacity weigh the same; report: Eq. 2.32 with Q = R = I as printed")
-    c.add_argument("--scenarios", metavar="FILE",
-                   help="score each particle over these scenarios (e.g. missions/scenarios/robust.yaml)")
+    c.add_argument("--scenarios", type=scenarios_file, metavar="NAME|FILE",
+                   help="score each particle over these scenarios: a shipped set's name (e.g. robust; `rov-mav "
+                        "missions` lists them) or a scenarios YAML")
     c.add_argument("--aggregate", choices=tuning.AGGREGATES, default="mean",
                    help="combine scenario costs by their mean (default) or the worst case")
     c.add_argument("--duration", type=number(0.0, MAX_DURATION, low_open=True), metavar="S",

@@ -1,4 +1,5 @@
-"""The control and adaptation laws in matrix form (ERRATA 2 and 3), batched: the statement the kernel is held to."""
+"""The control and adaptation laws in matrix form (ERRATA 2 and 3, docs/errata.md), batched: the statement the
+kernel is held to."""
 
 from __future__ import annotations
 

@@ -224,7 +224,7 @@ class Flights:
             raise IdentificationError("the logs hold no stretch of flight longer than one window")
         if max(np.abs(p.nominal).max() for p in self.pieces) < STILL_THRUST:
             raise IdentificationError("the thrusters never pushed in these logs: nothing to fit "
-                                      "(fly missions/identify.yaml)")
+                                      "(fly the shipped mission identify)")
         self.measured = {k: np.concatenate([m[k] for m in measured]) for k in measured[0]}
         self.asked = {k: np.concatenate([m[k] for m in asked]) for k in asked[0]}
 

@@ -199,7 +199,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     duration = sum(float(r.t[-1] - r.t[0]) for r in runs)
     if duration < MIN_DURATION:
         raise IdentificationError(f"only {duration:.1f} s of flight in the logs; identify needs at least "
-                                  f"{MIN_DURATION:g} s (fly missions/identify.yaml)")
+                                  f"{MIN_DURATION:g} s (fly the shipped mission identify)")
     params = _parameters(prior)
     names = [p.name for p in params]
     theta0 = theta_of(prior)
@@ -220,7 +220,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
     _structure(model, data, theta0, params, status, free_mask)
     if not free_mask().any():
         raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
-                                  "(fly missions/identify.yaml)")
+                                  "(fly the shipped mission identify)")
     period = float(np.median(np.concatenate([np.diff(r.t) for r in runs])))
     scale = np.maximum(np.sqrt(np.mean(model.sides(theta0, data.measured_windows(0.0))[1] ** 2, axis=0)), 1e-6)
     delay = _delay(model, data, theta0, free_mask(), scale, period)
@@ -232,7 +232,7 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         free = free_mask()
         if not free.any():
             raise IdentificationError("nothing in the logs can be identified: the vehicle was not excited "
-                                      "(fly missions/identify.yaml)")
+                                      "(fly the shipped mission identify)")
         fit = _fit(model, windows, np.where(free, theta, theta0), free, scale, instruments)
         scale = np.maximum(np.sqrt(np.mean(fit.residual**2, axis=0)), 1e-9)   # each DOF by its residual, as fitted
         fit = _fit(model, windows, fit.theta, free, scale, instruments)

@@ -4,7 +4,8 @@ A scenarios file lists entries; each may replace the mission's `environment` blo
 scale the simulated plant against the controller's model (mass, inertia, added mass, damping: `plant_scale`
 1.2 is a plant 20 % heavier than the model), seed the sensor noise, limit each thruster's thrust (`max_thrust`, N:
 the bench clips the wrench to what such thrusters can give) and name the group it reports under (`group`).
-Examples: missions/scenarios/robust.yaml (the tuning set), missions/scenarios/bench.yaml (the bench's held-out set).
+Shipped sets (`rov-mav missions`): robust (the tuning set), bench (the bench's held-out set), in rov_mav/data/missions/
+scenarios/.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ class _ScenarioSchema(config.StrictModel):
 
 
 class _ScenariosFile(config.StrictModel):
+    description: str = ""      # one line, for `rov-mav missions`
     scenarios: Annotated[list[_ScenarioSchema], Field(min_length=1)]
 
 
