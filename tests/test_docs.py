@@ -201,3 +201,5 @@ def test_pages_render_in_a_browser(page, served, browser, tmp_path):
         assert raw not in visible, f"{page}: raw LaTeX {raw!r} visible: the equations were not typeset"
     if page == "explanation/model-and-law.html":
         assert typeset >= 6, f"MathJax typeset {typeset} equations on the model page (needs the offline MathJax)"
+        for number in ("(2.7)", "(2.17)", "(2.22)"):
+            assert number in visible, f"equation {number} is not numbered as in the report"

@@ -26,6 +26,35 @@ from sphinx.util import logging
 LOG = logging.getLogger(__name__)
 
 
+# -- the command reference ---------------------------------------------------------------------------------------
+
+def cli_parser():
+    """`rov_mav.cli.build_parser()`, the parser `rov-mav` runs, every subcommand's arguments added, with the help
+    texts made literal for reStructuredText (sphinx-argparse parses them as such: `|velocity|` would be a substitution,
+    a lone `*` an emphasis). Option names, choices and defaults are untouched."""
+    import argparse
+    from rov_mav.cli import build_parser
+
+    def plain(text):
+        return re.sub(r"([|*`_\\])", r"\\\1", text) if isinstance(text, str) else text
+
+    def walk(parser):
+        parser.description, parser.epilog = plain(parser.description), plain(parser.epilog)
+        for group in parser._action_groups:
+            group.description = plain(group.description)
+        for action in parser._actions:
+            action.help = plain(action.help)
+            if isinstance(action, argparse._SubParsersAction):
+                for choice in action._choices_actions:
+                    choice.help = plain(choice.help)
+                for sub in action.choices.values():
+                    walk(sub)
+
+    parser = build_parser()
+    walk(parser)
+    return parser
+
+
 # -- a docutils table from rows of cells; a cell is text, with `code` spans as literals -------------------------
 
 def _cell(text: str) -> nodes.entry:
@@ -149,7 +178,9 @@ class ModelFields(Directive):
             comments = _comments(model)
             rows, found = [], []
             for name, field in model.model_fields.items():
-                rows.append([f"`{name}`", _type_text(field.annotation, found), _default_text(field),
+                kind = _type_text(field.annotation, found)
+                extra = _constraints(field.metadata)
+                rows.append([f"`{name}`", f"{kind} ({', '.join(extra)})" if extra else kind, _default_text(field),
                              comments.get(name, "")])
             if model is not cls:
                 out.append(nodes.paragraph(text=f"The {_schema_name(model)} block:"))
@@ -262,9 +293,34 @@ class FaultGrammar(Directive):
         return [table, example]
 
 
+# -- module docstrings ----------------------------------------------------------------------------------------------
+
+class ModuleDocstrings(Directive):
+    """Each module of a package with its docstring as written (the emulated ArduSub cites ArduPilot's source there)."""
+
+    required_arguments = 1
+
+    def run(self):
+        import pkgutil
+        package = importlib.import_module(self.arguments[0])
+        out = []
+        for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
+            module = importlib.import_module(f"{package.__name__}.{info.name}")
+            doc = inspect.cleandoc(module.__doc__ or "")
+            if not doc:
+                continue
+            title = f"{package.__name__}/{info.name}.py"
+            section = nodes.section(ids=[nodes.make_id(title)], names=[nodes.fully_normalize_name(title)])
+            section += nodes.title(text=title)
+            section += nodes.literal_block(doc, doc, classes=["rovmav-docstring"])
+            out.append(section)
+        return out
+
+
 def setup(app):
     app.add_directive("model-fields", ModelFields)
     app.add_directive("exit-statuses", ExitStatuses)
     app.add_directive("runlog-columns", RunlogColumns)
     app.add_directive("fault-grammar", FaultGrammar)
+    app.add_directive("module-docstrings", ModuleDocstrings)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
