@@ -155,6 +155,8 @@ def _default_text(field) -> str:
     value = field.default
     if isinstance(value, BaseModel):
         return "its defaults"
+    if value == "":
+        return "empty"
     return "none" if value is None else f"`{value}`"
 
 
