@@ -205,3 +205,32 @@ def test_pages_render_in_a_browser(page, served, browser, tmp_path):
         assert typeset >= 6, f"MathJax typeset {typeset} equations on the model page (needs the offline MathJax)"
         for number in ("(2.7)", "(2.17)", "(2.22)"):
             assert number in visible, f"equation {number} is not numbered as in the report"
+
+
+OTHER_PROGRAMS = {   # options the manual quotes from other programs' command lines
+    "--keep-going": "sphinx-build", "--dist": "pytest-xdist", "--logfile": "MAVProxy", "--nthreads": "dask worker",
+    "--nworkers": "dask worker", "--port": "dask scheduler", "--serve-grpc": "rerun",
+}
+
+
+def test_options_named_in_the_manual_exist():
+    """A hand-written `--option` in any page or the README is one rov-mav's parser or one of tools/ has: an option
+    renamed in the code fails here, not in a user's shell."""
+    known = set(OTHER_PROGRAMS)
+
+    def walk(parser):
+        for action in parser._actions:
+            known.update(action.option_strings)
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    walk(sub)
+
+    walk(build_parser())
+    tools = "".join(f.read_text(encoding="utf-8") for f in (ROOT / "tools").glob("*.py"))
+    stale = []
+    pages = [p for p in DOCS.rglob("*.md") if p.relative_to(DOCS).parts[0] not in ("_build", "bench", "report")]
+    for page in [*pages, ROOT / "README.md"]:
+        for option in set(re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]+)", page.read_text(encoding="utf-8"))):
+            if option not in known and f'"{option}"' not in tools:
+                stale.append(f"{page.relative_to(ROOT)}: {option}")
+    assert not stale, "options the code does not have: " + ", ".join(sorted(stale))
