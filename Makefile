@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 RERUN ?= $(if $(DISPLAY)$(WAYLAND_DISPLAY),spawn,save:out/square/run.rrd)
 ARGS ?=
 
-.PHONY: setup run test bench bench-tune bench-particles reproduce clean
+.PHONY: setup run test docs bench bench-tune bench-particles reproduce clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,10 @@ run: setup
 test: setup
 	$(BIN)/python -m pytest -q
 
+docs: setup
+	$(BIN)/sphinx-build -W --keep-going -n -q -b html docs docs/_build/html
+	@echo "the manual: docs/_build/html/index.html"
+
 bench: setup
 	$(BIN)/python tools/bench_simulation.py
 	$(BIN)/python tools/bench_telemetry.py
@@ -39,4 +43,4 @@ reproduce: setup
 	$(BIN)/python tools/reproduce_report.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out .pytest_cache docs/_build

@@ -1,5 +1,5 @@
 """Measure: each controller's shipped gains simulated on the line and the square (the missions' own environments),
-printed as the README's Markdown table. Run:
+printed as the Markdown table of docs/results/controllers.md. Run:
     .venv/bin/python tools/controller_table.py
 """
 
