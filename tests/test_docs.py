@@ -234,3 +234,14 @@ def test_options_named_in_the_manual_exist():
             if option not in known and f'"{option}"' not in tools:
                 stale.append(f"{page.relative_to(ROOT)}: {option}")
     assert not stale, "options the code does not have: " + ", ".join(sorted(stale))
+
+
+def test_run_help_names_every_exit_status_the_runner_returns():
+    """`rov-mav run --help` lists each exit status the runner can return, read from the constants it returns."""
+    from rov_mav.commands.run import EPILOG
+    from rov_mav.flight.thruster_watch import EXIT_THRUSTER
+    from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT
+
+    statuses = " ".join(EPILOG.split()).split("exit status:")[1]
+    for code in (0, 1, 2, 3, EXIT_THRUSTER, EXIT_REBOOT, EXIT_FAILSAFE):
+        assert f"; {code} " in statuses or statuses.startswith(f" {code} "), code

@@ -101,7 +101,8 @@ examples:
 exit status: 0 mission complete and the vehicle left safe; 1 aborted or refused (the reason is printed), or a
 safe-stop step not confirmed (named); 2 bad arguments or files;
 3 handed over to another station (pilot takeover); 6 a thruster failed and what is left cannot fly the
-mission; 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
+mission; 7 the vehicle rebooted; 8 the vehicle's own failsafe (a leak, a critical battery, its estimator, its depth
+sensor, SURFACE); 128+N stopped by signal N (130 Ctrl-C, 143 SIGTERM).
 """
 
 
