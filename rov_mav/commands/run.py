@@ -351,7 +351,8 @@ def main(args: argparse.Namespace) -> int:
         actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
                               pretension=args.pretension == "on", probe=args.thruster_check == "on" and not guided)
         controller = None if guided else Controller(model, settings)
-        warm_up(mission, controller, actuation, 1.0 / args.rate, args.approach_speed)
+        warm_up(mission, controller, actuation, 1.0 / args.rate, args.approach_speed,
+                own_estimate=args.estimator == "model")
 
     try:
         if target is None:

@@ -26,6 +26,7 @@ from rov_mav.flight.claim import VehicleClaim
 from rov_mav.flight.control_loop import STALL, FlightLoop
 from rov_mav.flight.guided import GuidedStream
 from rov_mav.flight.link import LinkError, Session
+from rov_mav.flight.model_estimator import ModelEstimator
 from rov_mav.flight.outputs import Guided, MotorTest, Passthrough
 from rov_mav.flight.prediction import StatePredictor
 from rov_mav.flight.run_io import RunIO
@@ -42,9 +43,11 @@ HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
 
 def warm_up(mission: Mission, controller: Controller | None, actuation: Actuation, period: float,
-            approach_speed: float) -> None:
+            approach_speed: float, own_estimate: bool = False) -> None:
     """One tick's computations, so that the first real tick pays no first-call (compile, import) costs. The caller
-    runs it before the Runner takes the vehicle (`rov-mav run` before even starting its built-in vehicle)."""
+    runs it before the Runner takes the vehicle (`rov-mav run` before even starting its built-in vehicle); with
+    `own_estimate`, the run's own filter's (`--estimator model`: its model is compiled on first use, seconds on a
+    fresh install, which must not come with the first acoustic fix in flight)."""
     reference = mission.reference(0.0)
     eta = reference[:6] + 0.1
     if controller is not None:
@@ -55,6 +58,12 @@ def warm_up(mission: Mission, controller: Controller | None, actuation: Actuatio
         predictor.observe(0.0, eta, np.zeros(6))
         predictor.observe(period, eta, np.zeros(6))
         predictor.predicted(period, eta, np.zeros(6), 3.5 * period)
+        if own_estimate:
+            filter_ = ModelEstimator(controller.model)
+            filter_.start(0.0, eta, np.zeros(6))
+            filter_.commanded(0.0, np.ones(6))
+            filter_.advance(period, np.zeros(6))
+            filter_.fix(period, float(eta[0]), float(eta[1]), 0.1)
     actuation.command(np.full(6, 1e3))          # the bounded (saturated) allocation path too
     actuation.command(np.zeros(6))
     actuation.reset()

@@ -1,0 +1,34 @@
+"""The run's warm-up (`flight.runner.warm_up`) compiles, before the run takes the vehicle, every compiled kernel the
+flight will call: a first call in flight costs seconds on a fresh install (the kernels' compilation), with the
+thrusters holding their last command meanwhile."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+PROBE = """
+from rov_mav.control.controller import Controller, load_settings
+from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.runner import warm_up
+from rov_mav.mission.missions import load_mission
+from rov_mav.model import kernel
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.shipped import resolve
+vehicle = load_vehicle()
+warm_up(load_mission(resolve("mission", "square")), Controller(vehicle, load_settings("fuzzy", None)), Actuation(vehicle, 40.0), 0.02,
+        0.2, own_estimate={own})
+print(len(kernel.state_derivative.signatures), len(kernel.predict.signatures))
+"""
+
+
+@pytest.mark.parametrize("own", [False, True])
+def test_the_run_s_own_estimators_model_is_compiled_before_the_flight_when_it_flies_on_it(own):
+    """In a fresh interpreter: the law's and the prediction's kernels always; the model of `--estimator model`
+    (kernel.state_derivative, which nothing else calls) only when the run will fly on it."""
+    out = subprocess.run([sys.executable, "-c", PROBE.format(own=own)], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    own_estimator, predictor = map(int, out.stdout.split())
+    assert predictor >= 1 and (own_estimator >= 1) == own
