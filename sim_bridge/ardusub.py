@@ -15,8 +15,10 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 - The vehicle's own sysid is fixed at boot (ArduPilot applies SYSID_THISMAV / MAV_SYSID on reboot: measured).
 - SERVOn_FUNCTION 51..66 (RCIN1..16) passes RC input n straight to output n, whether armed or not, without motor
   directions; with no RC receiver the output keeps its last value after the override ends.
-- SERVOn_FUNCTION 33..40 (motors 1..8) come from the vectored_6dof mixer of the pilot channels, only when armed
-  (1500 us when disarmed), limited to MOT_PWM_MIN..MAX, or RC3_MIN..MAX when those two are invalid
+- The frame is FRAME_CONFIG as it was at boot (`Sub::init_rc_out`; `rov_mav.model.frames`): its motors and their
+  mixer (`sim_bridge.mixer`). SERVOn_FUNCTION 33..40 (motors 1..8) come from that mixer of the pilot channels, only
+  when armed (1500 us when disarmed); an output assigned a motor the frame does not have sends no pulse (nothing
+  writes its function), limited to MOT_PWM_MIN..MAX, or RC3_MIN..MAX when those two are invalid
   (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE,
   ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, in GUIDED through `guided`'s position
   controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`; SURFACE as
@@ -33,15 +35,19 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 - Motor test (MAV_CMD_DO_MOTOR_TEST, ArduSub/motors.cpp `handle_do_motor_test`, `init_motor_test`,
   `verify_motor_test`; AP_MotorsMatrix `output_test_num`): from any sysid; needs the vehicle armed, no failed start
   in the last 2 s (nor in the first 2 s after boot) and no timeout in the last 10 s; test type BOARD (2) only; param1
-  is the 0-based motor index, the PWM raw (no MOT_n_DIRECTION, no MOT_PWM_MIN..MAX). While it runs the motors show
-  only the test PWMs (1500 until commanded) instead of the mixer; 0.5 s without a command ends it and disarms. A
-  disarm does not end it.
+  is the 0-based index of a motor of the frame, the PWM raw (no MOT_n_DIRECTION, no MOT_PWM_MIN..MAX). While it runs
+  the motors show only the test PWMs (1500 until commanded) instead of the mixer (`Sub::motors_output` calls only
+  `verify_motor_test`); 0.5 s without a command ends it and disarms. A disarm does not end it, and nothing writes the
+  outputs then: the last test PWMs stay on the thrusters, every further command (refused: `output_test_num` needs
+  the vehicle armed) is still stamped as the test's last (`handle_do_motor_test` stamps before anything else), and
+  only the timeout 0.5 s after the last command brings the motors back to neutral.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rov_mav.model.frames import MAX_MOTORS, frame_of
 from sim_bridge import arming, joystick, mixer, modes, surface
 from sim_bridge.failsafes import Failsafes, Sensors
 from sim_bridge.guided import Guided
@@ -59,14 +65,14 @@ FS_PILOT_DISARM = 2
 GCS_CHECK_PERIOD = 0.3          # s: ArduSub's 3.3 Hz loop
 GCS_WARN_PERIOD = 30.0          # s between "heartbeat lost" warnings
 RCIN1, RCIN16 = 51, 66
-MOTOR1, MOTOR8 = 33, 40
+MOTOR1 = 33                     # SERVOn_FUNCTION of motor 1 (`rov_mav.model.frames`)
 SERVOS = 16
 # Pilot axis of each RC channel 1..6 in the mixer's order (roll, pitch, yaw, throttle, forward, lateral).
 PILOT_CHANNEL_OF_AXIS = (1, 0, 3, 2, 4, 5)
 _RC_RANGE = [(f"RC{ch + 1}_MIN", f"RC{ch + 1}_TRIM", f"RC{ch + 1}_MAX") for ch in PILOT_CHANNEL_OF_AXIS]
-_MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, 9)]
+_MOTOR_DIRECTION = [f"MOT_{i}_DIRECTION" for i in range(1, MAX_MOTORS + 1)]
 _SERVO_FUNCTION = [f"SERVO{n}_FUNCTION" for n in range(1, SERVOS + 1)]
-_NEUTRAL = np.full(8, 1500, dtype=np.int32)
+NEUTRAL = 1500
 UINT16_MAX = 65535
 MOTOR_TEST_THROTTLE_PERCENT, MOTOR_TEST_THROTTLE_PWM, MOTOR_TEST_THROTTLE_PILOT = 0, 1, 2
 MOTOR_TEST_ORDER_BOARD = 2
@@ -81,6 +87,8 @@ class ArduSub:
     def __init__(self, params: Params, t: float = 0.0):
         self.params = params
         self.sysid = params.sysid & 0xFF                # `mavlink_system.sysid` is a uint8_t
+        self.frame = frame_of(int(params["FRAME_CONFIG"]))   # fixed at boot
+        self._neutral = np.full(self.frame.motors, NEUTRAL, dtype=np.int32)
         self.joystick_gain = joystick.joystick_gain(params["JS_GAIN_DEFAULT"], params["JS_GAIN_MIN"],
                                                     params["JS_GAIN_MAX"], params["JS_GAIN_STEPS"])
         self._lights = (int(params["RC9_MIN"]), int(params["RC10_MIN"]))
@@ -102,7 +110,7 @@ class ArduSub:
         self._state: tuple[np.ndarray, np.ndarray] | None = None   # the last estimate `update` was given
         self._held: np.ndarray | None = None          # motor PWM from the assisted modes' holds, this pass
         self.motor_testing = False
-        self._test_pwm = _NEUTRAL
+        self._test_pwm = self._neutral
         self._test_seen = t                           # the last DO_MOTOR_TEST
         self._test_start_failed = t                   # ArduSub's static starts at 0: boot
         self._test_timed_out: float | None = None
@@ -213,7 +221,7 @@ class ArduSub:
         if not self.armed:
             self.texts.append((MAV_SEVERITY_WARNING, "Arm motors before testing motors."))
             return False
-        self._test_pwm = _NEUTRAL.copy()
+        self._test_pwm = self._neutral.copy()
         self.motor_testing = True
         return True
 
@@ -224,9 +232,9 @@ class ArduSub:
         return f32(low + f32(f32(f32(percent) * f32(0.01)) * (high - low)))
 
     def _output_test_num(self, motor: int, pwm: int) -> bool:
-        """`AP_MotorsMatrix::output_test_num`: the int16 PWM written raw (as the uint16 of `rc_write`) to an enabled
-        motor, only when armed."""
-        if not self.armed or motor >= len(_NEUTRAL):
+        """`AP_MotorsMatrix::output_test_num`: the int16 PWM written raw (as the uint16 of `rc_write`) to a motor
+        the frame has, only when armed."""
+        if not self.armed or motor >= self.frame.motors:
             return False
         self._test_pwm[motor] = pwm & UINT16_MAX
         return True
@@ -273,7 +281,7 @@ class ArduSub:
             axes = self.guided.axes(self.params, *state, t, dt)
         else:
             return
-        self._held = mixer.to_pwm(mixer.mix(axes, self._directions()), *self._pwm_range())
+        self._held = mixer.to_pwm(self._mix(axes), *self._pwm_range())
 
     def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float,
                         acceleration=(0.0, 0.0, 0.0)) -> bool:
@@ -337,17 +345,17 @@ class ArduSub:
                          for ch, (low, trim, high) in zip(PILOT_CHANNEL_OF_AXIS, _RC_RANGE)])
 
     def motor_pwm(self) -> np.ndarray:
-        """PWM (8,) of motors 1..8: the mixer when armed (the test PWMs while a motor test runs), neutral when
-        disarmed."""
-        if not self.armed:
-            return _NEUTRAL
+        """PWM (n,) of the frame's motors: the test PWMs while a motor test runs (armed or not), else the mixer when
+        armed, neutral when disarmed."""
         if self.motor_testing:
             return self._test_pwm
+        if not self.armed:
+            return self._neutral
         if self._held is not None:
             return self._held
         key = (self.rc.radio_in[:6].tobytes(), self.params.version)
         if key != self._mix_key:                 # the mixer only when the pilot channels or parameters changed
-            self._mixed = mixer.to_pwm(mixer.mix(self.pilot_axes(), self._directions()), *self._pwm_range())
+            self._mixed = mixer.to_pwm(self._mix(self.pilot_axes()), *self._pwm_range())
             self._mix_key = key
         return self._mixed
 
@@ -357,15 +365,16 @@ class ArduSub:
             return p["MOT_PWM_MIN"], p["MOT_PWM_MAX"]
         return p["RC3_MIN"], p["RC3_MAX"]
 
-    def _directions(self) -> np.ndarray:
-        return np.array([-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION])
+    def _mix(self, axes) -> np.ndarray:
+        directions = [-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION[:self.frame.motors]]
+        return mixer.mix(axes, directions, self.frame, self.params["MOT_FV_CPLNG_K"])
 
     def servo_outputs(self) -> np.ndarray:
         """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs; all 0 with the safety on,
         as measured on ArduSub 4.5.3 SITL)."""
         if self._routing_version != self.params.version:
             functions = np.array([int(self.params[name]) for name in _SERVO_FUNCTION])
-            self._motor = (functions >= MOTOR1) & (functions <= MOTOR8)
+            self._motor = (functions >= MOTOR1) & (functions < MOTOR1 + self.frame.motors)
             self._rcin = (functions >= RCIN1) & (functions <= RCIN16)
             self._motor_index = functions[self._motor] - MOTOR1
             self._rcin_index = functions[self._rcin] - RCIN1

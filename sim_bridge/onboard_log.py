@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from sim_bridge.dataflash import FORMATS, header_records, record
-from sim_bridge.telemetry import EARTH_RADIUS, FIRMWARE_VERSION, Snapshot, banner
+from sim_bridge.telemetry import EARTH_RADIUS, FIRMWARE_VERSION, Snapshot, firmware_string
 
 PERIOD = 0.1                    # s: the 10 Hz records
 ARM_PERSIST = 15.0              # s of logging after a disarm (HAL_LOGGER_ARM_PERSIST)
@@ -61,7 +61,7 @@ class OnboardLog:
         (self.directory / "LASTLOG.TXT").write_text(f"{number}\r\n", newline="")
         major, minor, patch = FIRMWARE_VERSION[snap.firmware]
         values = [(s.name, params[s.name], float(s.default)) for s in params.specs]
-        text = banner(snap.firmware, int(params["FRAME_CONFIG"]))[0]
+        text = firmware_string(snap.firmware)
         self._buffer.append(header_records(self._us(t), values, (major, minor, patch), text))
         self._write_mode(t, snap.custom_mode)
 

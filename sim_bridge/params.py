@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from rov_mav.model.frames import HEAVY, MOTOR_FUNCTION_BASE, frame_of
 from sim_bridge.numeric import f32, float_to_int
 
 INT8, INT16, INT32, REAL32 = 2, 4, 6, 9          # MAV_PARAM_TYPE
@@ -25,6 +26,8 @@ _ROUNDING = f32(0.01)
 
 FIRMWARES = ("4.5", "4.7")
 DEFAULT_FIRMWARE = "4.7"
+BUILT_IN_FRAME = HEAVY.config    # the built-in vehicle is a BlueROV2 Heavy unless told FRAME_CONFIG (ArduSub's own
+                                 # default is 1, VECTORED: a vehicle set up as a Heavy has it 2)
 CHANNELS = 4                                     # MAVLink channels (links) that have stream-rate parameters
 NO_FORWARD, NO_STREAM_OVERRIDE = 1 << 1, 1 << 2  # MAVn_OPTIONS bits (4.7, `GCS_MAVLINK::var_info`)
 GCS_SYSID_ENFORCE = 1 << 0                       # MAV_OPTIONS bit (4.7; SYSID_ENFORCE in 4.5)
@@ -79,7 +82,7 @@ def names_for(firmware: str) -> Names:
     raise ValueError(f"unknown firmware {firmware!r}: choose one of {', '.join(FIRMWARES)}")
 
 
-def _table(names: Names) -> list[Spec]:
+def _table(names: Names, frame: int) -> list[Spec]:
     specs = [
         Spec(names.sysid, 1, INT16),
         Spec(names.gcs_sysid, 255, INT16),
@@ -87,7 +90,8 @@ def _table(names: Names) -> list[Spec]:
           else [Spec("SYSID_ENFORCE", 0, INT8)]),
         # the arming checks (`sim_bridge.arming`): 4.7 the checks skipped, 4.5 the checks performed (1: all)
         Spec("ARMING_SKIPCHK", 0, INT32) if names.sysid == "MAV_SYSID" else Spec("ARMING_CHECK", 1, INT32),
-        Spec("FRAME_CONFIG", 2, INT8),                 # vectored_6dof (BlueROV2 Heavy)
+        Spec("FRAME_CONFIG", frame, INT8),             # read at boot (`rov_mav.model.frames`)
+        Spec("MOT_FV_CPLNG_K", 1.0, REAL32),           # the VECTORED frame's forward/vertical coupling
         Spec("MOT_PWM_MIN", 1100, INT16),
         Spec("MOT_PWM_MAX", 1900, INT16),
         *(Spec(f"MOT_{i}_DIRECTION", 1, INT8) for i in range(1, 9)),
@@ -102,7 +106,9 @@ def _table(names: Names) -> list[Spec]:
     for ch in range(1, 17):
         specs += [Spec(f"RC{ch}_MIN", 1100, INT16), Spec(f"RC{ch}_MAX", 1900, INT16),
                   Spec(f"RC{ch}_TRIM", 1500, INT16)]
-    specs += [Spec(f"SERVO{n}_FUNCTION", 32 + n if n <= 8 else 0, INT16) for n in range(1, 17)]
+    # each motor of the frame on the output of its number (`AP_Motors::add_motor_num`), the other outputs unassigned
+    motors = frame_of(frame).motors
+    specs += [Spec(f"SERVO{n}_FUNCTION", MOTOR_FUNCTION_BASE + n if n <= motors else 0, INT16) for n in range(1, 17)]
     specs += [
         Spec("FS_GCS_ENABLE", 2, INT8),
         Spec("FS_GCS_TIMEOUT", 5.0, REAL32),
@@ -171,10 +177,10 @@ def stored_value(value: float, ptype: int) -> float:
 class Params:
     """The parameter table of one emulated vehicle, in ArduSub's send order (index = position)."""
 
-    def __init__(self, firmware: str = DEFAULT_FIRMWARE):
+    def __init__(self, firmware: str = DEFAULT_FIRMWARE, frame: int = BUILT_IN_FRAME):
         self.firmware = firmware
         self.names = names_for(firmware)
-        self.specs = _table(self.names)
+        self.specs = _table(self.names, frame)
         self._index = {s.name: i for i, s in enumerate(self.specs)}
         self._values = {s.name: float(s.default) for s in self.specs}
         self._stored = dict(self._values)

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from rov_mav.model.frames import MOTOR_FUNCTION_BASE
 from rov_mav.model.thrusters import ThrusterMap, allocation_matrix
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.model.vehicle_faults import VehicleFaults
@@ -20,6 +21,19 @@ from sim_bridge.battery import Battery
 
 VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery voltage rounded to this
 NO_PULSE_BELOW = 800            # us: an output this low (0 = unassigned) sends no pulse: the ESC stops
+
+
+def harness(functions: list[int], thrusters: int) -> np.ndarray:
+    """Which output (0-based) each thruster's ESC is plugged into, -1 for none: thruster k where the vehicle was set up
+    to drive motor k (the first output whose SERVOn_FUNCTION was 32 + k when the bridge started; the wires do not move
+    when a parameter changes later). A thruster no output was set up to drive is not plugged in: no pulse, no thrust."""
+    return np.array([next((j for j, f in enumerate(functions) if f == MOTOR_FUNCTION_BASE + k), -1)
+                     for k in range(1, thrusters + 1)])
+
+
+def plugged(outputs: np.ndarray, wires: np.ndarray) -> np.ndarray:
+    """The PWM (n,) each thruster receives from the vehicle's outputs (16,) through `harness`'s wires (0: none)."""
+    return np.where(wires >= 0, outputs[np.maximum(wires, 0)], 0)
 
 
 class Physics:

@@ -137,7 +137,7 @@ class Protocol:
 
     def _banner(self) -> list[Reply]:
         return [(ENCODER.statustext_encode(MAV_SEVERITY_INFO, text.encode()), False)
-                for text in telemetry.banner(self.params.firmware, int(self.params["FRAME_CONFIG"]))]
+                for text in telemetry.banner(self.params.firmware, self.vehicle.frame)]
 
     def _reboot(self, target_component: int, p1: float, p2: float, p3: float, y: int) -> int:
         """`GCS_MAVLINK::handle_preflight_reboot`: DENIED for another component; the 42/24/71 test actions are not

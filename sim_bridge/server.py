@@ -20,6 +20,7 @@ line, and the loop goes on (the fuzz test requires the count to stay 0: this is 
 
 from __future__ import annotations
 
+import math
 import select
 import sys
 import threading
@@ -42,9 +43,9 @@ from sim_bridge.link import Link, open_links
 from sim_bridge.missions import MissionProtocol
 from sim_bridge.onboard_log import OnboardLog
 from sim_bridge.pacing import Pacer
-from sim_bridge.params import NO_FORWARD, Params
+from sim_bridge.params import BUILT_IN_FRAME, INT8, NO_FORWARD, Params, stored_value
 from sim_bridge.routing import Router
-from sim_bridge.physics import Physics
+from sim_bridge.physics import Physics, harness, plugged
 from sim_bridge.protocol import Protocol
 from sim_bridge.schedule import GROUP_OF, Scheduler
 from sim_bridge.sensors import Sensors
@@ -63,7 +64,8 @@ class Bridge:
         if config.speedup <= 0:
             raise ValueError("speedup must be positive")
         self.config = config
-        self.params = Params(config.firmware)
+        frame = config.params.get("FRAME_CONFIG", BUILT_IN_FRAME)
+        self.params = Params(config.firmware, int(stored_value(frame, INT8)) if math.isfinite(frame) else BUILT_IN_FRAME)
         for name, value in {**config.params, "SIM_SPEEDUP": config.speedup}.items():
             if name not in self.params:
                 raise ValueError(f"unknown parameter {name}")
@@ -84,6 +86,8 @@ class Bridge:
                       seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
+        self.wires = harness([int(self.params[f"SERVO{n}_FUNCTION"]) for n in range(1, 17)],
+                             len(self.vehicle.thruster_positions))
         self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step,
                                self.vehicle_faults)
         # the navigation's sensors (None: ideal, the plant's state plus the environment's noise, as before)
@@ -296,7 +300,7 @@ class Bridge:
             if self.onboard_log is not None:
                 self.onboard_log.step(uptime, self.sub.armed, self.sub.mode, self.snapshot, self.params)
         with self._lock:
-            self.physics.step(self.servo[:8], self.t)
+            self.physics.step(plugged(self.servo, self.wires), self.t)
             self.steps += 1
         previous, phase = phase, self.boot.phase(self.steps)
         if phase != boot.OFF and previous == boot.OFF:

@@ -19,6 +19,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.dynamics import rotation
+from rov_mav.model.frames import Frame
 from rov_mav.units import wrap_angle
 
 ENCODER = mavlink.MAVLink(None)
@@ -197,13 +198,17 @@ def autopilot_version(s: Snapshot):
                                             [0] * 8, 0, 0, 0)
 
 
-def banner(firmware: str, frame_config: int) -> list[str]:
+def banner(firmware: str, frame: Frame) -> list[str]:
     """The STATUSTEXTs (INFO) of `GCS_MAVLINK::send_banner`, as SITL sends them (no OS or board lines): the firmware
-    string (THISFIRMWARE " (" GIT_VERSION ")"), then Sub's frame (`GCS_MAVLINK_Sub::send_banner`,
-    `AP_Motors6DOF` frame strings: 1 VECTORED, 2 VECTORED_6DOF)."""
+    string (THISFIRMWARE " (" GIT_VERSION ")"), then Sub's "Frame: " and the frame string of the frame it booted with
+    (`GCS_MAVLINK_Sub::send_banner`, `AP_Motors6DOF::setup_motors`)."""
+    return [firmware_string(firmware), f"Frame: {frame.name}"]
+
+
+def firmware_string(firmware: str) -> str:
+    """THISFIRMWARE " (" GIT_VERSION ")": the banner's first line."""
     major, minor, patch = FIRMWARE_VERSION[firmware]
-    frame = {1: "VECTORED", 2: "VECTORED_6DOF"}.get(frame_config, "UNKNOWN")
-    return [f"ArduSub V{major}.{minor}.{patch} ({GIT_HASH})", f"Frame: {frame}"]
+    return f"ArduSub V{major}.{minor}.{patch} ({GIT_HASH})"
 
 
 def mission_current(s: Snapshot):

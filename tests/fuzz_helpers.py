@@ -27,7 +27,7 @@ from pathlib import Path
 from run_helpers import CHECKER_SYSID, SPEEDUP
 from test_bridge_gcs import RETRY, WAIT, BridgeProcess, Gcs, free_port, mavutil
 
-from sim_bridge.ardusub import MOTOR1, MOTOR8, SUPPORTED_MODES
+from sim_bridge.ardusub import MOTOR1, SUPPORTED_MODES
 from sim_bridge.fuzz import SIGNATURE_LEN, SIGNED, STX_V1, STX_V2, Traffic
 from sim_bridge.params import Params
 from sim_bridge.telemetry import NAME_OF_ID
@@ -295,7 +295,7 @@ def _outputs(checker: Gcs, params: dict[str, object]) -> list[str]:
     problems = []
     for n, function in functions.items():
         value = getattr(m, f"servo{n}_raw")
-        if MOTOR1 <= function <= MOTOR8 and value != 1500 or function == 0 and value != 0:
+        if MOTOR1 <= function < MOTOR1 + 8 and value != 1500 or function == 0 and value != 0:
             problems.append(f"SERVO{n} (function {function}) at {value} us while disarmed")
     return problems
 

@@ -157,17 +157,22 @@ def test_10_s_cooldown_after_a_timeout_and_2_s_between_failed_starts():
     assert motors(sub) == [1600] + [1500] * 7                      # a new test starts from neutral
 
 
-def test_a_disarm_does_not_end_the_test_the_timeout_does_and_starts_the_cooldown():
+def test_a_disarm_does_not_end_the_test_nor_free_the_thrusters_the_timeout_does_and_starts_the_cooldown():
+    """Sub::motors_output calls only verify_motor_test while a test runs: a disarm writes nothing, so the last test
+    PWM stays on the thruster; a refused command still stamps the test alive (handle_do_motor_test stamps first)."""
     sub = armed_vehicle()
     assert motor_test(sub, 0, 1600, T0) == MAV_RESULT_ACCEPTED
+    assert motor_test(sub, 3, 1900, T0) == MAV_RESULT_ACCEPTED
     sub.arm(False)
-    assert motors(sub) == [1500] * 8 and sub.motor_testing
+    assert motors(sub) == [1600, 1500, 1500, 1900] + [1500] * 4 and sub.motor_testing
     t = run(sub, T0, T0 + 0.4)
-    assert motor_test(sub, 0, 1650, t) == MAV_RESULT_FAILED and sub.texts == []   # output_test_num: not armed
+    assert motor_test(sub, 0, 1500, t) == MAV_RESULT_FAILED and sub.texts == []   # output_test_num: not armed
     run(sub, t, t + 0.5)
-    assert sub.motor_testing and sub.texts == []                  # the refused command kept it alive
+    assert sub.motor_testing and sub.texts == []                  # the refused command kept it alive ...
+    assert motors(sub) == [1600, 1500, 1500, 1900] + [1500] * 4   # ... with the last accepted PWMs on
     sub.update(t + 0.5 + STEP)
     assert sub.texts == TIMED_OUT and not sub.motor_testing
+    assert motors(sub) == [1500] * 8                              # the timeout frees them
     sub.texts.clear()
     sub.arm(True)
     assert motor_test(sub, 0, 1600, t + 3.0) == MAV_RESULT_FAILED and sub.texts == COOLDOWN

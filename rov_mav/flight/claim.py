@@ -1,5 +1,6 @@
-"""Claiming the vehicle, before anything drives it: identify it (ArduSub on a sub), watch the link for a few seconds
-sending nothing but reads and refuse a vehicle that is someone else's (`stations.judge`), then take the GCS role if
+"""Claiming the vehicle, before anything drives it: identify it (ArduSub on a sub), refuse one whose frame or motor
+outputs are not what the vehicle file describes (`vehicle_frame`), watch the link for a few seconds sending nothing
+but reads and refuse a vehicle that is someone else's (`stations.judge`), then take the GCS role if
 a pilot's joystick shares the GCS sysid, make abandoned passthrough outputs neutral, ask for the telemetry the law
 needs and check its rate. Every change is written into the run's `VehicleChanges` as it is made."""
 
@@ -14,7 +15,9 @@ from rov_mav.flight.run_io import RunIO
 from rov_mav.flight.run_options import Abort
 from rov_mav.flight.stations import Sighting, Verdict, judge
 from rov_mav.flight.stream_rate import measure, too_slow
-from rov_mav.flight.vehicle_changes import MOTOR_BASE, PASSTHROUGH_BASE
+from rov_mav.flight.vehicle_frame import OUTPUTS, banner_frame, find_motors, frame_refusal
+from rov_mav.model.frames import MOTOR_FUNCTION_BASE, frame_of
+from rov_mav.model.vehicle import Vehicle
 
 SIDE_RATES = {"SYS_STATUS": 2.0, "EKF_STATUS_REPORT": 5.0,   # vehicle Hz; a lost position stops the run at once
               "SERVO_OUTPUT_RAW": 10.0, "RC_CHANNELS": 5.0}      # a pilot's joystick interleaved with our overrides
@@ -28,16 +31,22 @@ ROLE_SYSIDS = range(254, 200, -1)   # sysids to take the GCS role with, when a p
 DRY_RUN_SYSID = 254              # a dry run's own sysid: anything but the vehicle's GCS sysid
 GCS_SYSID_HIGH = "MAV_GCS_SYSID_HI"   # ArduSub 4.7: the top of a range of GCS sysids (0: none)
 PROGRESS_EVERY = 5.0             # wall s between "still waiting" messages
+BANNER_WAIT = 3.0                # vehicle s for the "Frame:" line of the banner, where FRAME_CONFIG was not read
+THRUSTERS, MOTORS, FRAME = "thrusters", "motors", "frame"   # what a route needs of the vehicle (`VehicleClaim`)
 
 
 class VehicleClaim:
-    """`claim()`: the vehicle identified, judged free, and ready to be taken (the GCS role, abandoned outputs neutral,
-    the state streaming at the control rate); Abort if it must not be. `set_directions(signs)` receives the vehicle's
-    MOT_1..8_DIRECTION."""
+    """`claim()`: the vehicle identified, held to `vehicle` (the vehicle file), judged free, and ready to be taken
+    (the GCS role, abandoned outputs neutral, the state streaming at the control rate); Abort if it must not be.
+    `set_directions(signs)` receives the vehicle's MOT_1..8_DIRECTION. `needs`: what the route needs of the vehicle:
+    THRUSTERS (RC passthrough: the frame, each motor on one output, no other output passing the thruster channels
+    on), MOTORS (the motor test: the frame and each motor on one output) or FRAME (GUIDED: ArduSub's own mixer)."""
 
-    def __init__(self, io: RunIO, set_directions):
+    def __init__(self, io: RunIO, set_directions, vehicle: Vehicle, needs: str = THRUSTERS):
         self.io = io
         self.set_directions = set_directions
+        self.vehicle = vehicle
+        self.needs = needs
         self.speed = 1.0            # vehicle s per wall s over the observation (a simulator's speedup)
 
     def claim(self) -> None:
@@ -45,6 +54,7 @@ class VehicleClaim:
         vehicle = s.connect(o.heartbeat_timeout)
         io.say(f"vehicle: ArduSub submarine, sysid {vehicle.sysid}, on {s.target}")
         since = s.clock.now()
+        self._hold_to_vehicle_file()
         passthrough = [] if o.dry_run else self._read_outputs()
         gcs = s.gcs_sysid()
         verdict = judge(self._observe(since, passthrough), s.stations, o.force)
@@ -104,14 +114,53 @@ class VehicleClaim:
         rc, io.rc_seen = io.rc_seen, None
         return Sighting(since=since, armed=s.armed, passthrough=passthrough, rc=rc)
 
+    def _hold_to_vehicle_file(self) -> None:
+        """Refuse, changing nothing, a vehicle whose frame is not the vehicle file's or (as the route needs) whose
+        motors are not each on one output; else note where they are (`io.motors`) and keep their outputs' functions
+        to restore."""
+        io, s, expected = self.io, self.io.session, self.vehicle.frame
+        names = [f"SERVO{n}_FUNCTION" for n in range(1, OUTPUTS + 1)]
+        found = s.get_params(["FRAME_CONFIG", *names])
+        frame = frame_of(int(found["FRAME_CONFIG"][0])) if "FRAME_CONFIG" in found else self._banner_frame()
+        refusal = frame_refusal(frame, expected, self.vehicle.name)
+        if refusal is not None:
+            raise Abort(f"refusing to fly this vehicle: {refusal}. Nothing was changed on it")
+        said = f"frame: {frame.describe()}" + ("" if "FRAME_CONFIG" in found else ' (from its "Frame:" banner)')
+        if missing := [n for n in names if n not in found]:
+            if self.needs == FRAME:
+                io.say(f"{said}: ArduSub's own mixer drives its motors")
+                return
+            raise Abort(f"could not read {', '.join(missing)} from the vehicle: nothing was changed on it")
+        functions = {n: int(found[name][0]) for n, name in enumerate(names, 1)}
+        motors = find_motors(functions, expected, self.vehicle.name, passthrough=self.needs == THRUSTERS)
+        if isinstance(motors, str):
+            if self.needs != FRAME:
+                raise Abort(f"refusing to fly this vehicle: {motors}. Nothing was changed on it")
+            io.say(f"{said}: ArduSub's own mixer drives its motors; but {motors}", "warning")
+            return
+        io.motors = motors
+        io.changes.saved_functions = {name: found[name] for name in motors.names()}
+        io.say(f"{said}, {motors.describe()}: the vehicle the vehicle file describes"
+               + (" (a dry run reads them only)" if io.options.dry_run else ""))
+
+    def _banner_frame(self):
+        """The frame the vehicle's "Frame:" banner line names (MAV_CMD_DO_SEND_BANNER), for a vehicle that did not
+        give FRAME_CONFIG; Abort when it says none."""
+        s = self.io.session
+        before = s.texts_seen
+        s.command(mavlink.MAV_CMD_DO_SEND_BANNER)
+        s.wait(lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith("Frame:"), s.clock.wall_seconds(BANNER_WAIT))
+        lines = [text for text in s.texts_after(before) if text.startswith("Frame:")]
+        frame = banner_frame(lines[-1], self.vehicle.frame) if lines else None
+        if frame is None:
+            raise Abort("refusing to fly this vehicle: it gave neither FRAME_CONFIG nor a known \"Frame:\" line ("
+                        + (repr(lines[-1]) if lines else "no banner") + "). Nothing was changed on it")
+        return frame
+
     def _read_outputs(self) -> list[str]:
-        """Save SERVO1..8_FUNCTION, learn MOT_1..8_DIRECTION; returns the outputs already on RCIN passthrough."""
+        """Learn MOT_1..8_DIRECTION; returns the motors' outputs found on RCIN passthrough (a run that lost its link)
+        and saves their motor function to restore."""
         io, s, changes = self.io, self.io.session, self.io.changes
-        names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
-        changes.saved_functions = s.get_params(names)
-        missing = [n for n in names if n not in changes.saved_functions]
-        if missing:
-            raise Abort(f"could not read {', '.join(missing)} from the vehicle")
         directions = s.get_params([f"MOT_{n}_DIRECTION" for n in range(1, CHANNELS + 1)])
         signs = [directions.get(f"MOT_{n}_DIRECTION", (1.0, 0))[0] for n in range(1, CHANNELS + 1)]
         self.set_directions(np.array(signs))
@@ -120,11 +169,10 @@ class VehicleClaim:
             io.say(f"MOT_n_DIRECTION = -1 on thruster(s) {reversed_}: passthrough and the motor test bypass it, so "
                    "their PWM is mirrored about 1500")
         stale = []
-        for n in range(1, CHANNELS + 1):
-            name = f"SERVO{n}_FUNCTION"
-            value, ptype = changes.saved_functions[name]
-            if int(value) == PASSTHROUGH_BASE + n:
-                changes.saved_functions[name] = (float(MOTOR_BASE + n), ptype)
+        for k, output in enumerate(io.motors.outputs, 1):
+            if output in io.motors.stale:
+                name = io.motors.name(k)
+                changes.saved_functions[name] = (float(MOTOR_FUNCTION_BASE + k), changes.saved_functions[name][1])
                 stale.append(name)
         return stale
 

@@ -209,7 +209,7 @@ class FlightLoop:
             foreign = (f"the vehicle's RC input is not what this run sends (RC_CHANNELS 1-16 {rc}): another station "
                        "is writing it")
         elif kind == "SERVO_OUTPUT_RAW" and self.output.outputs_echo_overrides and \
-                s.echo.servo(out := [getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)]):
+                s.echo.servo(out := [getattr(msg, f"servo{i}_raw") for i in self.io.motors.outputs]):
             foreign = (f"the thrusters' outputs are not what this run sends (SERVO_OUTPUT_RAW {out}): another station "
                        "is writing the RC input they pass through")
         else:

@@ -52,15 +52,16 @@ class Passthrough:
         self._switch()
 
     def _switch(self) -> None:
+        """Each motor k's output (wherever the vehicle has it: `io.motors`) to RCINk passthrough, then armed."""
         io, s, changes = self.io, self.io.session, self.io.changes
-        names = [f"SERVO{n}_FUNCTION" for n in range(1, CHANNELS + 1)]
-        passthrough = {name: (float(PASSTHROUGH_BASE + n), changes.saved_functions[name][1])
-                       for n, name in enumerate(names, 1)}
+        names = io.motors.names()
+        passthrough = {name: (float(PASSTHROUGH_BASE + k), changes.saved_functions[name][1])
+                       for k, name in enumerate(names, 1)}
         changes.functions += [name for name in passthrough if name not in changes.functions]
         if failed := s.set_params(passthrough):
             raise Abort("the vehicle did not confirm " + ", ".join(f"{n} = {int(passthrough[n][0])}" for n in failed)
                         + " (RCIN passthrough)")
-        io.say("SERVO1..8_FUNCTION set to RCIN1..8 passthrough (confirmed)")
+        io.say(f"{', '.join(names)} set to RCIN1..{len(names)} passthrough (confirmed)")
         self._arm_in_manual()
         io.say("armed in MANUAL")
 

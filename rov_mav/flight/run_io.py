@@ -15,6 +15,7 @@ from rov_mav.flight.own_navigation import OwnNavigation
 from rov_mav.flight.run_options import MODEL, Abort, RunOptions
 from rov_mav.flight.truth import Truth
 from rov_mav.flight.vehicle_changes import VehicleChanges
+from rov_mav.flight.vehicle_frame import DEFAULT_OUTPUTS, MotorOutputs
 from rov_mav.flight.vehicle_state import State, StateDecoder
 
 SAFE_STOP_CONFIRM = 1.5          # vehicle s to see neutral in SERVO_OUTPUT_RAW
@@ -27,6 +28,7 @@ class RunIO:
         self.changes = changes
         self.sinks = sinks
         self.decoder = StateDecoder(options.velocity_blend, steady=True)   # jumps taken in at a flyable pace
+        self.motors = DEFAULT_OUTPUTS             # where the vehicle's motors are (`flight.claim` reads it)
         self.own: OwnNavigation | None = None     # the run's own estimator (--estimator model), while flying
         if options.estimator == MODEL:
             session.taps.append(self._navigation_source)
@@ -114,9 +116,19 @@ class RunIO:
             hook()
         self.changes.overrides_sent = True
 
+    @property
+    def motors(self) -> MotorOutputs:
+        return self._motors
+
+    @motors.setter
+    def motors(self, motors: MotorOutputs) -> None:
+        """Where the motors are: the outputs read for them in SERVO_OUTPUT_RAW follow."""
+        self._motors = motors
+        self.decoder.outputs = motors.outputs
+
     def neutral_confirmed(self, confirm: float = SAFE_STOP_CONFIRM, slack: float = 0.3) -> bool:
         """Send neutral and wait up to `confirm` vehicle s (plus `slack` wall s) for SERVO_OUTPUT_RAW showing 1500
-        on SERVO1..8."""
+        on the motors' outputs."""
         self.send_neutral()
         self.decoder.servo = None
         deadline = time.monotonic() + self.session.clock.wall_seconds(confirm) + slack

@@ -22,7 +22,7 @@ import numpy as np
 
 from rov_mav.control.controller import Controller
 from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.claim import VehicleClaim
+from rov_mav.flight.claim import FRAME, MOTORS, THRUSTERS, VehicleClaim
 from rov_mav.flight.control_loop import STALL, FlightLoop
 from rov_mav.flight.guided import GuidedStream
 from rov_mav.flight.link import LinkError, Session
@@ -83,13 +83,13 @@ class Runner:
         self.changes = VehicleChanges()
         self.io = RunIO(session, options, self.changes, sinks)
         if guided is not None:
-            self.output = Guided(self.io, guided)
+            self.output, needs = Guided(self.io, guided), FRAME
         elif options.output == MOTOR_TEST:
-            self.output = MotorTest(self.io)
+            self.output, needs = MotorTest(self.io), MOTORS
         else:
-            self.output = Passthrough(self.io)
+            self.output, needs = Passthrough(self.io), THRUSTERS
         self.loop = FlightLoop(self.io, mission, controller, actuation, self.output, sinks, true_disturbance)
-        self.claim = VehicleClaim(self.io, actuation.set_directions)
+        self.claim = VehicleClaim(self.io, actuation.set_directions, actuation.vehicle, needs)
         self.round_trip_ms = float("nan")
         if session.rejections is not None:
             session.rejections.on_first = lambda r: self.io.say(

@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 PASSTHROUGH_BASE = 50            # SERVOn_FUNCTION 50 + n = RCINn
-MOTOR_BASE = 32                  # SERVOn_FUNCTION 32 + n = motor n
 
 
 @dataclass

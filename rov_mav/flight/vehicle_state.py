@@ -44,7 +44,8 @@ class StateDecoder:
         self.blend = EstimateBlend(velocity_blend)
         self.jumps = EstimateJumps() if steady else None   # the estimate's jumps taken in at a flyable pace (a run)
         self.voltage: float | None = None     # V, from SYS_STATUS
-        self.servo: np.ndarray | None = None  # (8,) SERVO1..8 PWM as the vehicle reports them
+        self.servo: np.ndarray | None = None  # (8,) the motors' outputs' PWM as the vehicle reports them
+        self.outputs = tuple(range(1, 9))     # the output (1-based) of each motor (`vehicle_frame.MotorOutputs`)
         self._latest: dict[str, object] = {}  # the latest message of each state kind
         self._fresh: set[str] = set()
         self._period_ms: dict[str, int] = {}  # the interval before each kind's latest message
@@ -65,7 +66,7 @@ class StateDecoder:
         if kind == "SYS_STATUS" and msg.voltage_battery not in (0, 0xFFFF):
             self.voltage = msg.voltage_battery / 1000.0
         elif kind == "SERVO_OUTPUT_RAW":
-            self.servo = np.array([getattr(msg, f"servo{i}_raw") for i in range(1, 9)], dtype=float)
+            self.servo = np.array([getattr(msg, f"servo{i}_raw") for i in self.outputs], dtype=float)
         if kind not in STATE_MESSAGES:
             return False
         previous = self._latest.get(kind)

@@ -15,6 +15,7 @@ from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
 from rov_mav.model import kernel
+from rov_mav.model.frames import FRAMES, HEAVY, Frame, frame_named
 
 MAX_VALUE = 1e6   # |any number| in a vehicle file (SI units): far beyond any ROV, and products stay finite
 Real = Annotated[float, Field(ge=-MAX_VALUE, le=MAX_VALUE)]
@@ -72,6 +73,7 @@ class _ThrusterSchema(config.StrictModel):
 
 class _VehicleSchema(config.StrictModel):
     name: str
+    frame: str = HEAVY.label          # ArduSub's FRAME_CONFIG, by its label in lower case
     mass: Positive
     volume: Positive
     water_density: Positive
@@ -92,6 +94,23 @@ class _VehicleSchema(config.StrictModel):
         ixy, iyz, ixz = self.inertia_products
         ix, iy, iz = self.inertia
         return np.array([[ix, -ixy, -ixz], [-ixy, iy, -iyz], [-ixz, -iyz, iz]])
+
+    @field_validator("frame")
+    @classmethod
+    def _known_frame(cls, name: str) -> str:
+        try:
+            frame_named(name)
+        except KeyError:
+            raise ValueError(f"unknown frame {name!r}: ArduSub's frames are "
+                             + ", ".join(f.label for f in FRAMES.values())) from None
+        return name
+
+    @model_validator(mode="after")
+    def _thrusters_of_the_frame(self) -> "_VehicleSchema":
+        frame, count = frame_named(self.frame), len(self.thrusters.positions)
+        if frame.motors != count:
+            raise ValueError(f"frame: {frame.label} has {frame.motors} motors, thrusters lists {count}")
+        return self
 
     @model_validator(mode="after")
     def _inertia_positive_definite(self) -> "_VehicleSchema":
@@ -139,6 +158,7 @@ class Vehicle:
     thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the curve
     per_thruster_scale: np.ndarray = field(default_factory=lambda: np.ones(8))   # (8,) each thruster's, x the above
     thruster_curve: QuadraticCurve | None = None   # None: the Blue Robotics T200 data at the battery voltage
+    frame: Frame = HEAVY             # ArduSub's frame whose motors 1..n are thrusters T1..Tn
 
     @property
     def weight(self) -> float:
@@ -205,6 +225,7 @@ class Vehicle:
 
         return {
             "name": self.name,
+            "frame": self.frame.label,
             "mass": float(self.mass),
             "volume": float(self.volume),
             "water_density": float(self.water_density),
@@ -255,6 +276,7 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
         thrust_scale=np.array(s.thrusters.thrust_scale, dtype=float),
         per_thruster_scale=np.array(s.thrusters.per_thruster_scale, dtype=float),
         thruster_curve=_curve(s.thrusters.curve),
+        frame=frame_named(s.frame),
     )
 
 
