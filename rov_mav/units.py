@@ -1,5 +1,5 @@
-"""Angles (wrapping; in configuration files radians by default, or '90 deg', '1.57 rad') and durations written
-with their unit ('50ms', '2s') in fault descriptions."""
+"""Angles (wrapping; in configuration files radians by default, or '90 deg', '1.57 rad'), durations written with their
+unit ('50ms', '2s') in fault descriptions, and latitude and longitude as metres on ArduPilot's flat earth."""
 
 from __future__ import annotations
 
@@ -9,6 +9,16 @@ from typing import Annotated, Any
 
 import numpy as np
 from pydantic import BeforeValidator
+
+
+EARTH_RADIUS = 6378137.0     # m: ArduPilot's flat-earth conversion (`Location::get_distance_NE`)
+
+
+def north_east(lat: float, lon: float, origin: tuple[float, float, float]) -> tuple[float, float]:
+    """m north and east of the origin (lat deg, lon deg, alt m) of a point at lat, lon deg, on the flat earth."""
+    lat0, lon0, _ = origin
+    return (math.radians(lat - lat0) * EARTH_RADIUS,
+            math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)))
 
 
 def wrap_angle(angle):

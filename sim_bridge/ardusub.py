@@ -8,8 +8,9 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   MAV_GCS_SYSID_HI, `Params.is_gcs`); they count as GCS heartbeats and as pilot input.
 - MANUAL_CONTROL (ArduSub/GCS_MAVLink_Sub.cpp, `GCS_MAVLINK_Sub::handle_message`): only from a GCS sysid and with
   `target` equal to this vehicle's sysid (0 is not accepted); its axes become overrides of channels 1-11 on 4.5, 1-8
-  on 4.7 (`joystick`) with the same expiry, and it counts as pilot input and as a GCS heartbeat. Buttons are ignored
-  (no arming, modes, lights or trims).
+  on 4.7 (`joystick`) with the same expiry, and it counts as pilot input and as a GCS heartbeat. Its buttons arm,
+  disarm and change modes by BTNn_FUNCTION (`sim_bridge.buttons`, Sub's defaults: 1 MANUAL, 2 ALT_HOLD, 3 STABILIZE,
+  4 disarm, 5 shift, 6 arm); the other functions (lights, mount, gains, trims) do nothing here.
 - The software safety switch (a mode change with base_mode 128, custom mode 1 on, 0 off): while on, every output reads
   0 and sends no pulse, armed or not (measured on ArduSub 4.5.3 SITL). A BlueROV2 boots with it off.
 - The vehicle's own sysid is fixed at boot (ArduPilot applies SYSID_THISMAV / MAV_SYSID on reboot: measured).
@@ -24,11 +25,18 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`; SURFACE as
   `sim_bridge.surface`. Mode changes pass `Sub::set_mode`'s gates (`sim_bridge.modes`): GUIDED and POSHOLD need
   `Sub::position_ok` (the EKF's, from `sensors`, and no EKF failsafe), ALT_HOLD a working depth sensor.
-- Pilot-input failsafe (checked every loop): after FS_PILOT_TIMEOUT with no pilot input, "Lost manual control",
-  channels 1-6 to neutral (7 and 8 keep theirs), disarm if FS_PILOT_INPUT is 2. It also fires at boot.
-- GCS failsafe (checked at 3.3 Hz, only once a GCS heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat
-  from the GCS sysid, while armed: warn (1), disarm (2), hold (3: ALT_HOLD) or surface (4: SURFACE), disarming if
-  that mode change is refused (`Sub::failsafe_gcs_check`, 4.5 and 4.7).
+- Pilot-input failsafe (`Sub::failsafe_pilot_input_check`, checked every loop): after FS_PILOT_TIMEOUT with no
+  pilot input, "Lost manual control" (CRITICAL, once), `Sub::set_neutral_controls`, disarm if FS_PILOT_INPUT is 2. It
+  also fires at boot. `set_neutral_controls` (4.5 and 4.7, ArduSub/joystick.cpp) writes each pilot channel's
+  (1-6) RCn_TRIM into its input, not an override: it lasts until the next RC read, which takes any override still
+  live back (RC_OVERRIDE_TIME -1: the last overrides return at once; 0: overrides are off and the input stays at
+  trim); 7 and 8 keep theirs.
+- GCS failsafe (`Sub::failsafe_gcs_check`, ArduSub/failsafe.cpp, 4.5 and 4.7; checked at 3.3 Hz, only once a GCS
+  heartbeat was seen): after FS_GCS_TIMEOUT without a heartbeat from the GCS sysid, "MYGCS: <MAV_GCS_SYSID>,
+  heartbeat lost" (WARNING) at most every 30 s, armed or not, and never in the first 30 s of uptime (the time of the
+  last warning starts at 0); while armed, once: warn (1), disarm (2), hold (3: ALT_HOLD) or surface (4: SURFACE),
+  disarming if that mode change is refused. On 4.7 traffic coming back clears it with "GCS Failsafe Cleared"
+  (WARNING); 4.5 clears it silently.
 - Leak, battery, EKF and depth-sensor failsafes: `sim_bridge.failsafes`, on the `sensors` given to `update`.
 - HEARTBEAT system_status (`GCS_MAVLINK_Sub::vehicle_system_status`): CRITICAL while a failsafe of
   `any_failsafe_triggered` is set, else ACTIVE armed, BOOT until initialised (`ap.initialised`), STANDBY.
@@ -48,8 +56,11 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav.model.frames import MAX_MOTORS, frame_of
+from rov_mav.units import north_east
 from sim_bridge import arming, joystick, mixer, modes, surface
+from sim_bridge import buttons as buttons_
 from sim_bridge.failsafes import Failsafes, Sensors
+from sim_bridge import guided
 from sim_bridge.guided import Guided
 from sim_bridge.modes import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
 from sim_bridge.numeric import f32, float_to_int, is_equal
@@ -84,10 +95,11 @@ MOTOR_TEST_COOLDOWN = 10.0      # s after a timeout before a new test may start
 class ArduSub:
     """State of one emulated ArduSub vehicle; drive it with the handlers and `update(t)`."""
 
-    def __init__(self, params: Params, t: float = 0.0):
+    def __init__(self, params: Params, t: float = 0.0, origin: tuple[float, float, float] | None = None):
         self.params = params
         self.sysid = params.sysid & 0xFF                # `mavlink_system.sysid` is a uint8_t
         self.frame = frame_of(int(params["FRAME_CONFIG"]))   # fixed at boot
+        self.origin = origin                            # the EKF origin (lat deg, lon deg, alt m); home is it
         self._neutral = np.full(self.frame.motors, NEUTRAL, dtype=np.int32)
         self.joystick_gain = joystick.joystick_gain(params["JS_GAIN_DEFAULT"], params["JS_GAIN_MIN"],
                                                     params["JS_GAIN_MAX"], params["JS_GAIN_STEPS"])
@@ -102,7 +114,7 @@ class ArduSub:
         self._gcs_seen: float | None = None
         self._pilot_seen = t
         self._next_gcs_check = t
-        self._last_gcs_warn: float | None = None
+        self._last_gcs_warn = 0.0                     # ArduSub's `last_gcs_warn_ms` starts at 0: boot
         self._routing_version = -1
         self._mix_key: tuple | None = None
         self.holds = Holds()
@@ -138,22 +150,31 @@ class ArduSub:
         self._gcs_seen = t
         return True
 
-    def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float) -> bool:
-        """MANUAL_CONTROL's (x, y, z, r, s, t) from `sysid` to `target`; False (ignored) unless from a GCS sysid
-        and aimed at this vehicle."""
+    def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float, buttons: int = 0) -> bool:
+        """MANUAL_CONTROL's (x, y, z, r, s, t) and 32 buttons from `sysid` to `target`; False (ignored) unless from
+        a GCS sysid and aimed at this vehicle. The buttons act as `sim_bridge.buttons` says, after the axes."""
         if not self.params.is_gcs(sysid) or target != self.sysid:
             return False
         values = joystick.rc_channels(*axes, gain=self.joystick_gain, throttle_gain=self.params["JS_THR_GAIN"],
                                       lights=self._lights, firmware=self.params.firmware)
         for ch, value in enumerate(values):
             self.rc.set_override(ch, value, t)
+        for action, value in buttons_.press(self.params, buttons):
+            if action == "mode":
+                self.set_mode(value)
+            else:
+                self.arm(not self.armed if action == "toggle" else bool(value))
         self._pilot_seen = t
         self._gcs_seen = t
         return True
 
     def arm(self, arm: bool, checks: bool = True) -> int:
-        """Arm or disarm: MAV_RESULT. Arming runs the arming checks unless `checks` is False (`sim_bridge.arming`):
-        each failure sent as CRITICAL "Arm: ...", and FAILED."""
+        """Arm or disarm: MAV_RESULT. Arming first needs the throttle centred (4.7, forced or not), then passes the
+        arming checks unless `checks` is False (`sim_bridge.arming`): each failure sent as CRITICAL "Arm: ...", and
+        FAILED."""
+        if arm and not self.armed and (refusal := arming.throttle_refusal(self.params, int(self.rc.radio_in[2]))):
+            self.texts.append((MAV_SEVERITY_CRITICAL, refusal))
+            return MAV_RESULT_FAILED
         if arm and not self.armed and checks:
             if failed := arming.failures(self.params, self.sensors):
                 self.texts += [(MAV_SEVERITY_CRITICAL, f"Arm: {text}") for text in failed]
@@ -278,18 +299,38 @@ class ArduSub:
             if self.mode == MODES["SURFACE"] and self._nobaro:
                 axes[3] = surface.nobaro_throttle(self.params)
         elif self.mode == MODES["GUIDED"]:
-            axes = self.guided.axes(self.params, *state, t, dt)
+            axes = self.guided.axes(self.params.guided_gains(), *state, t, dt)
         else:
             return
         self._held = mixer.to_pwm(self._mix(axes), *self._pwm_range())
 
     def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float,
-                        acceleration=(0.0, 0.0, 0.0)) -> bool:
+                        acceleration=(0.0, 0.0, 0.0), yaw_rate: float = 0.0) -> bool:
         """SET_POSITION_TARGET_LOCAL_NED's fields: a GUIDED target (`sim_bridge.guided`); False (ignored) outside
         GUIDED or when ArduSub would ignore it."""
         if self.mode != MODES["GUIDED"]:
             return False
-        return self.guided.target(frame, type_mask, position, velocity, yaw, self._state, t, acceleration)
+        return self.guided.target(frame, type_mask, position, velocity, yaw, self._state, t, acceleration, yaw_rate)
+
+    def position_target_global(self, frame: int, type_mask: int, lat: float, lon: float, alt: float, velocity,
+                               t: float) -> bool:
+        """SET_POSITION_TARGET_GLOBAL_INT's fields (deg, m, NED m/s) as `GCS_MAVLINK_Sub::handle_message` takes them:
+        in ALT_HOLD its altitude (m above the EKF origin, whatever the frame) becomes the depth target unless z is
+        ignored; in GUIDED a target (`sim_bridge.guided`), its position from the EKF origin by the frame's altitude
+        reference (`Location::get_vector_from_origin_NEU`): above the sea, or home (the origin here); above the
+        terrain needs terrain data this vehicle has not (no terrain database, no rangefinder), so it is dropped, as an
+        unknown frame is. False (ignored, silently, as ArduSub does) in any other mode or case."""
+        if self.mode == MODES["ALT_HOLD"] and not type_mask & guided.Z_IGNORE:
+            self.holds.depth = -float(alt)
+            return True
+        if self.mode != MODES["GUIDED"]:
+            return False
+        position = None
+        reference = guided.GLOBAL_FRAMES.get(frame)
+        if not type_mask & guided.POS_IGNORE and self.origin is not None and reference in ("sea", "home"):
+            north, east = north_east(lat, lon, self.origin)
+            position = np.array([north, east, -(alt - self.origin[2] if reference == "sea" else alt)])
+        return self.guided.global_target(type_mask, position, velocity, self._state, t)
 
     def _pilot_input_check(self, t: float) -> None:
         if self.params["FS_PILOT_INPUT"] == 0:
@@ -303,8 +344,7 @@ class ArduSub:
         self.failsafe_pilot = True
         self.texts.append((MAV_SEVERITY_CRITICAL, "Lost manual control"))
         for ch in range(6):
-            self.rc.set_override(ch, 1500, t)
-        self.rc.update(t, self.params["RC_OVERRIDE_TIME"])
+            self.rc.radio_in[ch] = int(self.params[f"RC{ch + 1}_TRIM"])
         if self.params["FS_PILOT_INPUT"] == FS_PILOT_DISARM:
             self.arm(False)
 
@@ -322,9 +362,11 @@ class ArduSub:
         if action == 0 or self._gcs_seen is None:
             return
         if t - self._gcs_seen < self.params["FS_GCS_TIMEOUT"]:
+            if self.failsafe_gcs and self.params.firmware == "4.7":
+                self.texts.append((MAV_SEVERITY_WARNING, "GCS Failsafe Cleared"))
             self.failsafe_gcs = False
             return
-        if self._last_gcs_warn is None or t - self._last_gcs_warn > GCS_WARN_PERIOD:
+        if t - self._last_gcs_warn > GCS_WARN_PERIOD:
             self._last_gcs_warn = t
             self.texts.append((MAV_SEVERITY_WARNING, f"MYGCS: {self.params.gcs_sysid}, heartbeat lost"))
         if self.failsafe_gcs or not self.armed:

@@ -47,9 +47,14 @@ import numpy as np
 from rov_mav.model.dynamics import rotation
 from rov_mav.units import wrap_angle
 
-FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED = 1, 7, 8, 9
-FRAMES = frozenset({FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED})
+FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 7, 8, 9, 12
+BODY_FRAMES = frozenset({FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD})
+FRAMES = frozenset({FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED}) | BODY_FRAMES
+# MAV_FRAME of SET_POSITION_TARGET_GLOBAL_INT -> the altitude's reference: the sea (AMSL), home, the terrain
+GLOBAL_FRAMES = {0: "sea", 5: "sea", 3: "home", 6: "home", 10: "terrain", 11: "terrain"}
 POS_IGNORE, VEL_IGNORE, ACC_IGNORE, YAW_IGNORE = 0x007, 0x038, 0x1C0, 0x400   # MAVLINK_SET_POS_TYPE_MASK_*
+Z_IGNORE, YAW_RATE_IGNORE = 0x004, 0x800
+POSVEL, VELOCITY, WAYPOINT = "posvel", "velocity", "waypoint"    # the sub-modes a target selects
 POSVEL_TIMEOUT = 3.0            # s: GUIDED_POSVEL_TIMEOUT_MS
 YAW_SLEW = math.radians(60.0)   # rad/s: AUTO_YAW_SLEW_RATE
 GRAVITY_CMSS = 980.665
@@ -113,10 +118,13 @@ class Guided:
 
     def reset(self) -> None:
         """Hold where the vehicle is at the next pass (its position, depth and heading)."""
+        self.submode = WAYPOINT                     # `ModeGuided::init`: the stopping point, by the waypoint navigator
         self.position: np.ndarray | None = None     # NED m, the position target
         self.velocity = np.zeros(3)                 # NED m/s
         self.acceleration = np.zeros(3)             # NED m/s/s (4.7.2)
         self.heading: float | None = None           # rad, the commanded heading
+        self.yaw_slew = YAW_SLEW                    # rad/s the heading target turns at towards it
+        self.yaw_rate: float | None = None          # rad/s, a yaw-rate-only target (no heading)
         self.heading_target: float | None = None    # rad, the slewed heading flown
         self.updated = -math.inf                    # s, when the last target came
         self.vel_xy = (Pid(), Pid())
@@ -125,34 +133,62 @@ class Guided:
         self._climb: float | None = None            # cm/s, last measured climb rate
 
     def target(self, frame: int, type_mask: int, position, velocity, yaw: float, state, t: float,
-               acceleration=(0.0, 0.0, 0.0)) -> bool:
-        """A SET_POSITION_TARGET_LOCAL_NED's fields (NED m, m/s, m/s/s, rad) with the vehicle's (eta, nu); False when
-        ArduSub would ignore it (frame or type_mask)."""
+               acceleration=(0.0, 0.0, 0.0), yaw_rate: float = 0.0) -> bool:
+        """A SET_POSITION_TARGET_LOCAL_NED's fields (NED m, m/s, m/s/s, rad, rad/s) with the vehicle's (eta, nu);
+        False when ArduSub would ignore it (frame or type_mask). Body frames (BODY_NED, BODY_OFFSET_NED, BODY_FRD) are
+        rotated by the heading only and, like LOCAL_OFFSET_NED, added to the current position, depth included; the
+        yaw is relative in BODY_OFFSET_NED only (`GCS_MAVLINK_Sub::handle_message`)."""
         if frame not in FRAMES or state is None:
-            return False
-        use_pos, use_vel = not type_mask & POS_IGNORE, not type_mask & VEL_IGNORE
-        use_acc = not type_mask & ACC_IGNORE
-        if use_acc and not (self.accel_targets and use_pos and use_vel) or not (use_pos or use_vel):
             return False
         eta = state[0]
         c, s = math.cos(eta[5]), math.sin(eta[5])
-        body = frame in (FRAME_BODY_NED, FRAME_BODY_OFFSET_NED)
+        body = frame in BODY_FRAMES
 
         def rotated(v):
             v = np.asarray(v, dtype=float)
             return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]) if body else v
 
+        pos = None if type_mask & POS_IGNORE else rotated(position) + (eta[:3] if frame != FRAME_LOCAL_NED else 0.0)
+        if not self._set(type_mask, pos, rotated(velocity), rotated(acceleration), eta, t):
+            return False
+        self._yaw(type_mask, yaw + (eta[5] if frame == FRAME_BODY_OFFSET_NED else 0.0), yaw_rate)
+        return True
+
+    def global_target(self, type_mask: int, position: np.ndarray | None, velocity, state, t: float) -> bool:
+        """A SET_POSITION_TARGET_GLOBAL_INT's, its position already made NED m from the EKF origin (None: it could not
+        be, or is ignored) and its velocity NED m/s; its yaw and yaw rate are not used (ArduSub leaves them for
+        future use). False when ArduSub would ignore it."""
+        if state is None or (position is None and not type_mask & POS_IGNORE):
+            return False
+        return self._set(type_mask, position, np.asarray(velocity, dtype=float), np.zeros(3), state[0], t)
+
+    def _set(self, type_mask: int, position, velocity, acceleration, eta, t: float) -> bool:
+        """The sub-mode the type_mask selects (`guided_set_destination_posvel`, `guided_set_velocity`,
+        `guided_set_destination`), with its targets; False for a combination ArduSub drops."""
+        use_pos, use_vel = not type_mask & POS_IGNORE, not type_mask & VEL_IGNORE
+        use_acc = not type_mask & ACC_IGNORE
+        if use_acc and not (self.accel_targets and use_pos and use_vel) or not (use_pos or use_vel):
+            return False
         if use_pos:
-            pos = rotated(position)
-            self.position = pos + eta[:3] if frame != FRAME_LOCAL_NED else pos
-        elif self.position is None:
+            self.position = np.asarray(position, dtype=float)
+        elif self.position is None or self.submode != VELOCITY:
             self.position = np.array(eta[:3], dtype=float)
-        self.velocity = rotated(velocity) if use_vel else np.zeros(3)
-        self.acceleration = rotated(acceleration) if use_acc else np.zeros(3)
-        if not type_mask & YAW_IGNORE:
-            self.heading = float(wrap_angle(yaw + (eta[5] if frame == FRAME_BODY_OFFSET_NED else 0.0)))
+        self.submode = POSVEL if use_pos and use_vel else VELOCITY if use_vel else WAYPOINT
+        self.velocity = velocity if use_vel else np.zeros(3)
+        self.acceleration = acceleration if use_acc else np.zeros(3)
         self.updated = t
         return True
+
+    def _yaw(self, type_mask: int, yaw: float, yaw_rate: float) -> None:
+        """`guided_set_yaw_state`: a heading, turned to at AUTO_YAW_SLEW_RATE or, with a rate, at min(rate, that); a
+        rate alone turns at it (at most AUTO_YAW_SLEW_RATE); neither: the heading held as it was."""
+        use_yaw, use_rate = not type_mask & YAW_IGNORE, not type_mask & YAW_RATE_IGNORE
+        if use_yaw:
+            self.heading = float(wrap_angle(yaw))
+            self.yaw_slew = min(abs(yaw_rate), YAW_SLEW) if use_rate else YAW_SLEW
+            self.yaw_rate = None
+        elif use_rate:
+            self.yaw_rate = min(max(yaw_rate, -YAW_SLEW), YAW_SLEW)
 
     def axes(self, params, eta: np.ndarray, nu: np.ndarray, t: float, dt: float) -> list[float]:
         """The mixer's (roll, pitch, yaw, throttle, forward, lateral) in [-1, 1] for one loop of dt s at time t."""
@@ -160,9 +196,11 @@ class Guided:
             self.position = np.array(eta[:3], dtype=float)
         if self.heading is None:
             self.heading = float(eta[5])
-        if t - self.updated > POSVEL_TIMEOUT:
+        if t - self.updated > POSVEL_TIMEOUT and self.submode != WAYPOINT:
             self.velocity = np.zeros(3)
             self.acceleration = np.zeros(3)
+        if self.submode == VELOCITY:          # `NE_stop_pos_stabilisation`: no horizontal position is held
+            self.position[:2] = eta[:2]
         self.position = self.position + self.velocity * dt + 0.5 * self.acceleration * dt * dt
         self.velocity = self.velocity + self.acceleration * dt
         v_ned = rotation(eta) @ np.asarray(nu[:3], dtype=float)
@@ -213,8 +251,10 @@ class Guided:
         """Level roll and pitch, the slewed heading: angle P -> rate target -> rate PID, per axis."""
         if self.heading_target is None:
             self.heading_target = float(eta[5])
+        if self.yaw_rate is not None:         # AUTO_YAW_RATE: the heading target turns at the rate
+            self.heading = float(wrap_angle(self.heading_target + self.yaw_rate * dt))
         step = float(wrap_angle(self.heading - self.heading_target))
-        step = min(max(step, -YAW_SLEW * dt), YAW_SLEW * dt)
+        step = min(max(step, -self.yaw_slew * dt), self.yaw_slew * dt)
         self.heading_target = float(wrap_angle(self.heading_target + step))
         yaw_ff = step / dt if dt > 0 else 0.0
         rate_max = math.radians(p["ATC_RATE_Y_MAX"]) if p["ATC_RATE_Y_MAX"] > 0 else math.inf

@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass
 
 from rov_mav.model.frames import HEAVY, MOTOR_FUNCTION_BASE, frame_of
+from sim_bridge.arming import RC_OPTION_ARMING_CHECK_THROTTLE, SUB_CHECKS
+from sim_bridge.buttons import BUTTONS, DEFAULTS
 from sim_bridge.numeric import f32, float_to_int
 
 INT8, INT16, INT32, REAL32 = 2, 4, 6, 9          # MAV_PARAM_TYPE
@@ -38,8 +40,10 @@ STREAM_DEFAULTS = {"RAW_SENS": 2, "EXT_STAT": 2, "RC_CHAN": 2, "RAW_CTRL": 0, "P
                    "EXTRA1": 10, "EXTRA2": 10, "EXTRA3": 3, "PARAMS": 0, "ADSB": 0}
 
 
-# GUIDED's position and attitude controllers (`sim_bridge.guided`): ArduSub 4.5.3's defaults, read from its SITL.
+# GUIDED's position and attitude controllers (`sim_bridge.guided`), by their 4.5 names and units: ArduSub 4.5.3's
+# defaults, read from its SITL. WPNAV_SPEED is AUTO's leg speed (read by a run flying the vehicle's mission).
 GUIDED_DEFAULTS = {
+    "WPNAV_SPEED": 100.0,
     "ANGLE_MAX": 4500.0,                                                 # cd
     "WPNAV_ACCEL": 250.0, "WPNAV_SPEED_UP": 250.0, "WPNAV_SPEED_DN": 150.0, "WPNAV_ACCEL_Z": 100.0,   # cm/s, cm/s/s
     "PSC_POSXY_P": 1.0, "PSC_VELXY_P": 6.0, "PSC_VELXY_I": 0.5, "PSC_VELXY_D": 0.0, "PSC_VELXY_IMAX": 1000.0,
@@ -51,6 +55,32 @@ GUIDED_DEFAULTS = {
     "ATC_RAT_PIT_P": 0.135, "ATC_RAT_PIT_I": 0.09, "ATC_RAT_PIT_D": 0.0036, "ATC_RAT_PIT_IMAX": 0.444,
     "ATC_RAT_YAW_P": 0.18, "ATC_RAT_YAW_I": 0.018, "ATC_RAT_YAW_D": 0.0, "ATC_RAT_YAW_IMAX": 0.222,
 }
+
+
+# 4.7's names and units of those of them it renamed: (4.7 name, 4.5 units per 4.7 unit). AC_PosControl's
+# `convert_parameters` (PSC_POSXY -> PSC_NE_POS, PSC_VELXY -> PSC_NE_VEL with IMAX in m/s/s, PSC_POSZ -> PSC_D_POS,
+# PSC_VELZ -> PSC_D_VEL, PSC_ACCZ -> PSC_D_ACC with P, I, D x 0.1 and IMAX x 0.001), AC_WPNav (WPNAV_ -> WP_, cm ->
+# m: PR #32147), AC_AttitudeControl (ANGLE_MAX in cd -> ATC_ANGLE_MAX in degrees). The ATC_ANG_* and ATC_RAT_* gains
+# kept their names.
+RENAMED_IN_4_7 = {
+    "ANGLE_MAX": ("ATC_ANGLE_MAX", 100.0),
+    "WPNAV_SPEED": ("WP_SPD", 100.0), "WPNAV_ACCEL": ("WP_ACC", 100.0), "WPNAV_SPEED_UP": ("WP_SPD_UP", 100.0),
+    "WPNAV_SPEED_DN": ("WP_SPD_DN", 100.0), "WPNAV_ACCEL_Z": ("WP_ACC_Z", 100.0),
+    "PSC_POSXY_P": ("PSC_NE_POS_P", 1.0), "PSC_VELXY_P": ("PSC_NE_VEL_P", 1.0), "PSC_VELXY_I": ("PSC_NE_VEL_I", 1.0),
+    "PSC_VELXY_D": ("PSC_NE_VEL_D", 1.0), "PSC_VELXY_IMAX": ("PSC_NE_VEL_IMAX", 100.0),
+    "PSC_VELXY_FLTE": ("PSC_NE_VEL_FLTE", 1.0), "PSC_VELXY_FLTD": ("PSC_NE_VEL_FLTD", 1.0),
+    "PSC_POSZ_P": ("PSC_D_POS_P", 1.0), "PSC_VELZ_P": ("PSC_D_VEL_P", 1.0),
+    "PSC_ACCZ_P": ("PSC_D_ACC_P", 10.0), "PSC_ACCZ_I": ("PSC_D_ACC_I", 10.0), "PSC_ACCZ_D": ("PSC_D_ACC_D", 10.0),
+    "PSC_ACCZ_IMAX": ("PSC_D_ACC_IMAX", 1000.0), "PSC_ACCZ_FLTE": ("PSC_D_ACC_FLTE", 1.0),
+}
+
+
+def renamed(name: str, value: float, is_4_7: bool) -> tuple[str, float]:
+    """A GUIDED parameter's (name, default) on the firmware: 4.5's, or 4.7's name and units."""
+    if not is_4_7 or name not in RENAMED_IN_4_7:
+        return name, value
+    new, scale = RENAMED_IN_4_7[name]
+    return new, value / scale
 
 
 @dataclass(frozen=True)
@@ -88,8 +118,12 @@ def _table(names: Names, frame: int) -> list[Spec]:
         Spec(names.gcs_sysid, 255, INT16),
         *([Spec("MAV_GCS_SYSID_HI", 0, INT16), Spec("MAV_OPTIONS", 0, INT16)] if names.sysid == "MAV_SYSID"
           else [Spec("SYSID_ENFORCE", 0, INT8)]),
-        # the arming checks (`sim_bridge.arming`): 4.7 the checks skipped, 4.5 the checks performed (1: all)
-        Spec("ARMING_SKIPCHK", 0, INT32) if names.sysid == "MAV_SYSID" else Spec("ARMING_CHECK", 1, INT32),
+        # the arming checks (`sim_bridge.arming`): 4.7 the checks skipped, 4.5 the checks performed; Sub's defaults
+        # run RC, voltage and battery only (ArduSub/Parameters.h defaults table)
+        Spec("ARMING_SKIPCHK", ~SUB_CHECKS, INT32) if names.sysid == "MAV_SYSID"
+        else Spec("ARMING_CHECK", SUB_CHECKS, INT32),
+        Spec("RC_OPTIONS", RC_OPTION_ARMING_CHECK_THROTTLE, INT32),   # RC_Channels_VarInfo's default
+        *([Spec("THR_ARM_POS", 1, INT8)] if names.sysid == "MAV_SYSID" else []),   # 4.7: throttle centred to arm
         Spec("FRAME_CONFIG", frame, INT8),             # read at boot (`rov_mav.model.frames`)
         Spec("MOT_FV_CPLNG_K", 1.0, REAL32),           # the VECTORED frame's forward/vertical coupling
         Spec("MOT_PWM_MIN", 1100, INT16),
@@ -103,9 +137,13 @@ def _table(names: Names, frame: int) -> list[Spec]:
         Spec("JS_GAIN_STEPS", 4, INT8),
         Spec("JS_THR_GAIN", 1.0, REAL32),
     ]
+    # MANUAL_CONTROL's buttons (`sim_bridge.buttons`): BTN0..15 by `Sub::default_js_buttons`, BTN16..31 none
+    for n in range(BUTTONS):
+        function, shifted = DEFAULTS[n] if n < len(DEFAULTS) else (0, 0)
+        specs += [Spec(f"BTN{n}_FUNCTION", function, INT8), Spec(f"BTN{n}_SFUNCTION", shifted, INT8)]
     for ch in range(1, 17):
         specs += [Spec(f"RC{ch}_MIN", 1100, INT16), Spec(f"RC{ch}_MAX", 1900, INT16),
-                  Spec(f"RC{ch}_TRIM", 1500, INT16)]
+                  Spec(f"RC{ch}_TRIM", 1500, INT16), Spec(f"RC{ch}_DZ", 0, INT16)]   # DZ: RC_Channel's default
     # each motor of the frame on the output of its number (`AP_Motors::add_motor_num`), the other outputs unassigned
     motors = frame_of(frame).motors
     specs += [Spec(f"SERVO{n}_FUNCTION", MOTOR_FUNCTION_BASE + n if n <= motors else 0, INT16) for n in range(1, 17)]
@@ -121,9 +159,9 @@ def _table(names: Names, frame: int) -> list[Spec]:
         Spec("BATT_ARM_MAH", 0, INT32),                # mAh left below which arming is refused; 0: off
         Spec("LOG_DISARMED", 0, INT8),                 # the on-board log (`sim_bridge.onboard_log`): 0 from arming
         Spec("LOG_FILE_DSRMROT", 0, INT8),             # 1: a new file after each disarm
-        Spec("WPNAV_SPEED", 100.0, REAL32),            # cm/s, AUTO's leg speed (4.5.3 SITL); read by a mission run
     ]
-    specs += [Spec(name, value, REAL32) for name, value in GUIDED_DEFAULTS.items()]
+    specs += [Spec(*renamed(name, value, names.sysid == "MAV_SYSID"), REAL32)
+              for name, value in GUIDED_DEFAULTS.items()]
     specs += _failsafe_table(names)
     for channel in range(CHANNELS):
         specs += [Spec(names.stream(channel, g), STREAM_DEFAULTS[g], INT16) for g in STREAM_GROUPS]
@@ -185,6 +223,7 @@ class Params:
         self._values = {s.name: float(s.default) for s in self.specs}
         self._stored = dict(self._values)
         self.version = 0                     # counts changes, for readers that cache derived values
+        self._gains_version = -1
 
     def __len__(self) -> int:
         return len(self.specs)
@@ -243,6 +282,16 @@ class Params:
         if channel >= CHANNELS:
             return 0
         return int(self._values.get(f"{self.names.stream_prefix[channel]}OPTIONS", 0))
+
+    def guided_gains(self) -> dict[str, float]:
+        """GUIDED's controller parameters by their 4.5 names, in 4.5 units, whatever this firmware calls them."""
+        if self._gains_version != self.version:
+            self._gains = {}
+            for name in GUIDED_DEFAULTS:
+                new, scale = RENAMED_IN_4_7[name] if self.firmware == "4.7" and name in RENAMED_IN_4_7 else (name, 1)
+                self._gains[name] = self._values[new] * scale
+            self._gains_version = self.version
+        return self._gains
 
     def stream_rate(self, channel: int, group: str) -> float:
         return self._values[self.names.stream(channel, group)]

@@ -1,7 +1,9 @@
 """What the emulated ArduSub answers to each MAVLink message a ground station sends (its GCS_MAVLINK layer).
 
 `Protocol.handle(msg, channel, scheduler, t)` returns the replies as (message, to_all) pairs: to_all=True goes out on
-every link (PARAM_VALUE after a PARAM_SET), False only back on the link the request came in on.
+every link (PARAM_VALUE after a PARAM_SET), False only back on the link the request came in on. The parameter list a
+PARAM_REQUEST_LIST asks for is streamed, not sent at once (`queued_params`), as `GCS_MAVLINK::queued_param_send`
+sends a few each pass of the main loop: a burst of hundreds of datagrams overflows a slow reader's socket.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ FTP_TERMINATE, FTP_RESET, FTP_LIST, FTP_OPEN_RO = 1, 2, 3, 4
 FTP_ERR_UNKNOWN_COMMAND, FTP_ERR_FILE_NOT_FOUND = 7, 10
 COMPID = 1
 FORCE_REBOOT = 20190226          # the magic that reboots an armed vehicle (PR #22325)
+PARAMS_PER_SECOND = 400.0        # of vehicle time: a parameter list streamed at ArduSub's pace over a tether (about
+                                 # 900 in 2-3 s into QGroundControl); one or two a pass of the 400 Hz loop
 
 
 class Protocol:
@@ -52,6 +56,7 @@ class Protocol:
         self.signing = signing
         self.reboot_requested = False          # by MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, for the bridge to act on
         self.on_param_set: Callable[[str, float, float], None] | None = None   # (name, stored value, t)
+        self._param_lists: dict[int, tuple[float, int]] = {}   # link -> (t the list was asked for, parameters sent)
 
     def handle(self, msg, channel: int, scheduler: Scheduler, t: float) -> list[Reply]:
         """Replies to one message received on link `channel` at sim time t (one routing kept for this vehicle)."""
@@ -62,10 +67,15 @@ class Protocol:
         elif kind == "RC_CHANNELS_OVERRIDE":
             self.vehicle.rc_override(sysid, [getattr(msg, f"chan{i}_raw") for i in range(1, 19)], t)
         elif kind == "MANUAL_CONTROL":
-            self.vehicle.manual_control(sysid, msg.target, (msg.x, msg.y, msg.z, msg.r, msg.s, msg.t), t)
+            self.vehicle.manual_control(sysid, msg.target, (msg.x, msg.y, msg.z, msg.r, msg.s, msg.t), t,
+                                        msg.buttons | (getattr(msg, "buttons2", 0) or 0) << 16)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
             self.vehicle.position_target(msg.coordinate_frame, msg.type_mask, (msg.x, msg.y, msg.z),
-                                         (msg.vx, msg.vy, msg.vz), msg.yaw, t, (msg.afx, msg.afy, msg.afz))
+                                         (msg.vx, msg.vy, msg.vz), msg.yaw, t, (msg.afx, msg.afy, msg.afz),
+                                         msg.yaw_rate)
+        elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self.vehicle.position_target_global(msg.coordinate_frame, msg.type_mask, msg.lat_int * 1e-7,
+                                                msg.lon_int * 1e-7, msg.alt, (msg.vx, msg.vy, msg.vz), t)
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg, scheduler, t)
         elif kind == "SET_MODE":
@@ -73,7 +83,8 @@ class Protocol:
             return [(ENCODER.command_ack_encode(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0, sysid,
                                                 msg.get_srcComponent()), False)]
         elif kind == "PARAM_REQUEST_LIST":      # `handle_param_request_list` sends the banner first
-            return self._banner() + [(self._param_value(i), False) for i in range(len(self.params))]
+            self._param_lists[channel] = (t, 0)   # a new request starts the list again
+            return self._banner()
         elif kind == "PARAM_REQUEST_READ":
             return self._param_read(msg)
         elif kind == "PARAM_SET":
@@ -207,6 +218,18 @@ class Protocol:
         return MAV_RESULT_DENIED
 
     # -- parameters ------------------------------------------------------------------------------------------
+
+    def queued_params(self, channel: int, t: float) -> list:
+        """The PARAM_VALUEs of the list link `channel` asked for that are due at vehicle time t, in index order."""
+        if channel not in self._param_lists:
+            return []
+        start, sent = self._param_lists[channel]
+        due = min(len(self.params), int((t - start) * PARAMS_PER_SECOND) + 1)
+        if due >= len(self.params):
+            del self._param_lists[channel]
+        else:
+            self._param_lists[channel] = (start, max(due, sent))
+        return [self._param_value(i) for i in range(sent, due)]
 
     def _param_value(self, index: int, reported_index: int | None = None):
         spec = self.params.specs[index]

@@ -65,7 +65,8 @@ class Bridge:
             raise ValueError("speedup must be positive")
         self.config = config
         frame = config.params.get("FRAME_CONFIG", BUILT_IN_FRAME)
-        self.params = Params(config.firmware, int(stored_value(frame, INT8)) if math.isfinite(frame) else BUILT_IN_FRAME)
+        self.params = Params(config.firmware,
+                             int(stored_value(frame, INT8)) if math.isfinite(frame) else BUILT_IN_FRAME)
         for name, value in {**config.params, "SIM_SPEEDUP": config.speedup}.items():
             if name not in self.params:
                 raise ValueError(f"unknown parameter {name}")
@@ -223,7 +224,7 @@ class Bridge:
         parameters."""
         if self.boot.reboots:
             self.params.reboot()
-        self.sub = ArduSub(self.params)
+        self.sub = ArduSub(self.params, origin=self.config.origin)
         self.sub.initialised = False
         plant = self.physics.plant
         self.avionics = Avionics(self.live, self.physics.battery, self.t, self.navigation, (plant.eta, plant.nu))
@@ -351,6 +352,8 @@ class Bridge:
             self._broadcast(telemetry.ENCODER.statustext_encode(severity, text.encode()[:50]))
         snap = None
         for link, scheduler in zip(self.links, self.schedulers):
+            for msg in self.protocol.queued_params(link.channel, uptime):
+                link.send(msg)
             for name in scheduler.due(uptime):
                 snap = snap or self.snapshot()
                 msg = telemetry.BUILDERS[name](snap)

@@ -22,7 +22,7 @@ CM = 0.01
 
 def climb_rate(params) -> float:
     """m/s up that SURFACE asks of the depth hold (ModeSurface::run: constrain(|WPNAV_SPEED_UP|, 1, speed up))."""
-    return min(max(abs(params["WPNAV_SPEED_UP"]), 1.0), max(params["PILOT_SPEED_UP"], 1.0)) * CM
+    return min(max(abs(params.guided_gains()["WPNAV_SPEED_UP"]), 1.0), max(params["PILOT_SPEED_UP"], 1.0)) * CM
 
 
 def nobaro_throttle(params) -> float:

@@ -126,6 +126,26 @@ def servo_functions(gcs: Gcs) -> list[int]:
     return [int(gcs.get_param(f"SERVO{n}_FUNCTION").param_value) for n in range(1, 9)]
 
 
+def watch_run(gcs, run) -> tuple[list[str], bool]:
+    """Until the runner exits: the PARAM_VALUEs the vehicle broadcast (a PARAM_SET's echo on every link) and whether
+    any HEARTBEAT showed it armed."""
+    written, armed = [], False
+    deadline = time.monotonic() + RUN_WAIT
+    while run.proc.poll() is None and time.monotonic() < deadline:
+        m = gcs.conn.recv_match(type=["PARAM_VALUE", "HEARTBEAT"], blocking=True, timeout=0.2)
+        if m is None or m.get_srcSystem() != 1:
+            continue
+        if m.get_type() == "PARAM_VALUE":
+            written.append(f"{m.param_id}={m.param_value:g}")
+        else:
+            armed |= bool(m.base_mode & 128)
+    return written, armed
+
+
+def servo_functions_16(gcs) -> list[int]:
+    return [int(gcs.get_param(f"SERVO{n}_FUNCTION").param_value) for n in range(1, 17)]
+
+
 def servo_outputs(gcs: Gcs) -> list[int]:
     msg = fresh(gcs, "SERVO_OUTPUT_RAW")
     return [getattr(msg, f"servo{n}_raw") for n in range(1, 9)]

@@ -32,7 +32,7 @@ def vehicle(frame: int) -> ArduSub:
 
 
 def stick(sub: ArduSub, **channels: int) -> list[int]:
-    """Hold RC overrides (ch1 pitch, ch2 roll, ch3 throttle, ch4 yaw, ch5 forward, ch6 lateral) and return SERVO1..16."""
+    """Hold RC overrides (ch1 pitch, ch2 roll, ch3 throttle, ch4 yaw, ch5 forward, ch6 lateral); SERVO1..16."""
     values = [1500] * 8 + [0] * 10
     for name, value in channels.items():
         values[int(name[2:]) - 1] = value

@@ -16,6 +16,7 @@ from rov_mav.model.vehicle import load_vehicle
 from sim_bridge.ardusub import MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.guided import FRAME_BODY_NED, FRAME_LOCAL_NED, sqrt_controller
+from rov_mav.units import EARTH_RADIUS
 from sim_bridge.params import Params
 from sim_bridge.physics import Physics
 
@@ -92,18 +93,53 @@ def test_follows_a_moving_setpoint_with_velocity_feed_forward():
     assert with_ff < 0.06 and without > 4 * with_ff
 
 
-def test_velocity_only_moves_and_the_timeout_stops_it_holding_position():
-    """GUIDED_POSVEL_TIMEOUT: 3 s after the last target the velocity target is zeroed; the vehicle stays armed and
-    holds where the target got to."""
-    dive = Dive()
+def test_velocity_only_holds_no_horizontal_position_but_the_depth_and_the_timeout_stops_it():
+    """Guided_Velocity (mode_guided.cpp): the horizontal position target follows the vehicle every loop
+    (`NE_stop_pos_stabilisation`), so a current that pushes it north is not undone, where a position target's is; the
+    depth target is the climb rate integrated (held at 0); 3 s after the last target the velocity is zeroed and the
+    vehicle stays armed in GUIDED wherever it got to."""
+    current = (10.0, 0, 0, 0, 0, 0)                            # N along the body x (north: heading 0)
+    dive = Dive(disturbance=current)
     dive.fly(1.0)
     assert dive.target(mask=VEL_YAW, vel=(0.0, 0.3, 0.0), pos=(50, 50, 50))   # position fields masked out
     dive.fly(2.0)
     moving = dive.plant.eta[1]
-    dive.fly(40.0)
-    eta = dive.plant.eta                   # the target stopped 3 s after it came: 0.9 m east
-    assert 0.3 < moving and abs(eta[1] - 0.9) < 0.05 and abs(eta[0]) < 0.05 and abs(eta[2] - 2.0) < 0.05
+    dive.fly(20.0)
+    eta = dive.plant.eta
+    assert 0.25 < moving and 0.6 < eta[1] < 1.2, eta             # about 3 s at 0.3 m/s east, then stopped
+    assert eta[0] > 0.5 and abs(eta[2] - 2.0) < 0.05, eta        # pushed north and left there; depth held
     assert dive.sub.armed and dive.sub.mode == MODES["GUIDED"]
+    held = Dive(disturbance=current)
+    held.fly(1.0)
+    assert held.target(mask=POS_YAW, pos=(0.0, 0.9, 2.0))
+    held.fly(22.0)
+    assert np.linalg.norm(held.plant.eta[:3] - [0.0, 0.9, 2.0]) < 0.1, held.plant.eta
+
+
+def test_yaw_rate_alone_turns_at_it_and_with_a_heading_caps_the_turn():
+    """guided_set_yaw_state: a yaw rate without a heading turns the vehicle at that rate; a heading with a rate is
+    turned to at min(rate, 60 deg/s); BODY_FRD is a body frame, rotated by the heading."""
+    dive = Dive()
+    dive.fly(1.0)
+    rate_only = 0x5C7                                          # velocity, yaw rate (position, acceleration, yaw off)
+    assert dive.sub.position_target(FRAME_LOCAL_NED, rate_only, (0, 0, 0), (0, 0, 0), 0.0, dive.t, (0, 0, 0),
+                                    math.radians(10))
+    dive.fly(2.0)                                              # no timeout: a rate is the heading's, not a velocity
+    first = dive.plant.eta[5]
+    dive.fly(2.0)
+    assert math.degrees(dive.plant.eta[5] - first) == pytest.approx(20.0, abs=3.0)
+    slow = Dive()
+    slow.fly(1.0)
+    heading_and_rate = 0x1F8                                   # position, yaw, yaw rate
+    assert slow.sub.position_target(FRAME_LOCAL_NED, heading_and_rate, (0, 0, 2.0), (0, 0, 0), math.radians(90),
+                                    slow.t, (0, 0, 0), math.radians(15))
+    turns = slow.fly(4.0)
+    assert 40 < math.degrees(turns[-1][5]) < 70                 # 15 deg/s for 4 s, not 60 deg/s (there in 1.5 s)
+    frd = Dive()
+    frd.fly(1.0)
+    assert frd.sub.position_target(12, POS_YAW, (0, 1.0, 0), (0, 0, 0), 0.0, frd.t)   # MAV_FRAME_BODY_FRD
+    frd.fly(30.0)
+    assert np.linalg.norm(frd.plant.eta[:3] - [0, 1.0, 2.0]) < 0.05
 
 
 def test_masked_position_fields_are_ignored_and_unsupported_targets_too():
@@ -148,3 +184,36 @@ def test_targets_outside_guided_and_disarmed_do_nothing():
     assert np.all(dive.sub.servo_outputs()[:8] == 1500) and abs(dive.plant.eta[0]) < 0.05
     dive.sub.set_mode(MODES["MANUAL"])
     assert not dive.target(pos=(3, 0, 2))
+
+
+ORIGIN = (47.6, -122.3, 10.0)         # lat, lon deg, alt m above the sea
+
+
+def _global(dive: Dive, frame: int, north: float, east: float, alt: float, mask: int = POS_YAW,
+            vel=(0.0, 0.0, 0.0)) -> bool:
+    lat = ORIGIN[0] + math.degrees(north / EARTH_RADIUS)
+    lon = ORIGIN[1] + math.degrees(east / (EARTH_RADIUS * math.cos(math.radians(ORIGIN[0]))))
+    return dive.sub.position_target_global(frame, mask, lat, lon, alt, vel, dive.t)
+
+
+def test_global_int_targets_by_their_altitude_frame_and_in_alt_hold_the_depth():
+    """SET_POSITION_TARGET_GLOBAL_INT (GCS_MAVLINK_Sub::handle_message): in GUIDED a position from the EKF origin,
+    its altitude above home (RELATIVE_ALT; home is the origin here) or above the sea (GLOBAL); above the terrain
+    is dropped without terrain data; in ALT_HOLD the altitude (above the origin) is the depth target; in MANUAL it
+    is ignored."""
+    dive = Dive()
+    dive.sub.origin = ORIGIN
+    dive.fly(1.0)
+    assert _global(dive, 6, 2.0, 1.0, -3.0)                           # GLOBAL_RELATIVE_ALT_INT
+    dive.fly(40.0)
+    assert np.linalg.norm(dive.plant.eta[:3] - [2.0, 1.0, 3.0]) < 0.05, dive.plant.eta
+    assert _global(dive, 5, 0.0, 0.0, ORIGIN[2] - 2.0)                # GLOBAL_INT: 2 m below the origin's altitude
+    assert not _global(dive, 11, 5.0, 5.0, 1.0)                        # GLOBAL_TERRAIN_ALT_INT: no terrain data
+    dive.fly(40.0)
+    assert np.linalg.norm(dive.plant.eta[:3] - [0.0, 0.0, 2.0]) < 0.1, dive.plant.eta
+    assert dive.sub.set_mode(MODES["ALT_HOLD"])
+    assert _global(dive, 6, 50.0, 50.0, -4.0)                          # the depth only, lat/lon not used
+    dive.fly(30.0)
+    assert abs(dive.plant.eta[2] - 4.0) < 0.1 and np.linalg.norm(dive.plant.eta[:2]) < 0.3, dive.plant.eta
+    assert dive.sub.set_mode(MODES["MANUAL"])
+    assert not _global(dive, 6, 1.0, 1.0, -1.0)

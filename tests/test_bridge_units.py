@@ -11,7 +11,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.thrusters import allocation_matrix, load_t200
 from sim_bridge import mixer, telemetry
-from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MODES, ArduSub
+from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
 from sim_bridge.battery import Battery
 from sim_bridge.config import BridgeConfig
 from sim_bridge.joystick import joystick_gain, rc_channels
@@ -57,6 +57,22 @@ def test_param_names_follow_the_firmware():
         assert len({s.name for s in p.specs}) == len(p)
     with pytest.raises(ValueError):
         Params("4.1")
+
+
+def test_4_7_names_and_units_of_the_position_controller_and_the_same_gains_flown():
+    """AC_PosControl's, AC_WPNav's and AC_AttitudeControl's 4.7 names, in their 4.7 units (m, m/s, degrees; the
+    vertical acceleration PID x 0.1, its IMAX x 0.001): a tuned 4.7 parameter file sets them, and GUIDED flies the
+    same gains as 4.5's names and units give."""
+    new, old = Params("4.7"), Params("4.5")
+    assert (new["WP_SPD"], new["WP_SPD_UP"], new["WP_ACC"], new["ATC_ANGLE_MAX"]) == pytest.approx((1.0, 2.5, 2.5, 45))
+    assert (new["PSC_NE_VEL_P"], new["PSC_NE_VEL_IMAX"], new["PSC_D_ACC_P"], new["PSC_D_ACC_IMAX"]) == \
+        pytest.approx((6.0, 10.0, 0.05, 0.1))
+    assert not {"WPNAV_SPEED", "PSC_VELXY_P", "PSC_ACCZ_P", "ANGLE_MAX"} & {s.name for s in new.specs}
+    assert {"WPNAV_SPEED", "PSC_VELXY_P", "PSC_ACCZ_P", "ANGLE_MAX"} <= {s.name for s in old.specs}
+    assert new.guided_gains() == pytest.approx(old.guided_gains())
+    new.set("PSC_D_ACC_P", 0.08)
+    new.set("ATC_ANGLE_MAX", 30)
+    assert new.guided_gains()["PSC_ACCZ_P"] == pytest.approx(0.8) and new.guided_gains()["ANGLE_MAX"] == 3000
 
 
 def test_param_set_stores_like_ardupilot():
@@ -164,7 +180,12 @@ def test_passthrough_ignores_arming_and_motor_functions_need_it():
     assert sub.rc_override(255, [1650] * 8 + [0] * 10, 0.0)
     sub.update(0.01)
     assert np.all(sub.servo_outputs()[:8] == 1500)              # motors: disarmed -> neutral
-    sub.arm(True)
+    assert sub.arm(True) == MAV_RESULT_FAILED                   # 4.7: the throttle (channel 3) is not at its trim
+    sub.rc_override(255, [1650, 1650, 1500] + [1650] * 5 + [0] * 10, 0.01)
+    sub.update(0.02)
+    assert sub.arm(True) == MAV_RESULT_ACCEPTED
+    sub.rc_override(255, [1650] * 8 + [0] * 10, 0.02)
+    sub.update(0.03)
     assert np.all(sub.servo_outputs()[:8] != 1500)              # mixer of saturated pilot axes
     sub.arm(False)
     passthrough(params)
@@ -203,6 +224,29 @@ def test_pilot_input_failsafe_neutralises_1_to_6_and_keeps_7_8():
     assert not sub.failsafe_pilot and sub.system_status() == 3
 
 
+@pytest.mark.parametrize("override_time, after", [(3.0, [1520, 1480, 1500, 1500, 1500, 1500]),
+                                                  (-1.0, [1600] * 6), (0.0, [1520, 1480, 1500, 1500, 1500, 1500])])
+def test_pilot_input_failsafe_writes_the_trims_into_the_input_until_a_live_override_takes_it_back(override_time, after):
+    """Sub::set_neutral_controls: channels 1-6 read their RCn_TRIM (not 1500) until the next RC read; an override
+    that never times out (RC_OVERRIDE_TIME -1) comes back at once; with overrides off (0) the input stays at trim
+    (here the overrides never reached it: it was at its boot value, 1500, then trim)."""
+    params = Params()
+    passthrough(params)
+    params.set("RC1_TRIM", 1520)
+    params.set("RC2_TRIM", 1480)
+    params.set("RC_OVERRIDE_TIME", override_time)
+    params.set("FS_PILOT_INPUT", 1)                             # warn only: the failsafe's effect on the input alone
+    sub = ArduSub(params)
+    sub.rc_override(255, [1600] * 8 + [0] * 10, 0.0)
+    run(sub, 0.0, 2.99)
+    assert sub.rc.radio_in[0] == (1500 if override_time == 0 else 1600)
+    sub.update(3.0)
+    assert sub.failsafe_pilot and list(sub.rc.radio_in[:2]) == [1520, 1480]
+    run(sub, 3.0, 4.0)
+    assert list(sub.rc.radio_in[:6]) == after
+    assert list(sub.rc.radio_in[6:8]) == ([1500, 1500] if override_time == 0 else [1600, 1600])
+
+
 def test_pilot_input_failsafe_fires_at_boot_and_only_once():
     sub = ArduSub(Params())
     run(sub, 0.0, 3.1)
@@ -219,14 +263,35 @@ def test_gcs_failsafe_actions(action, armed, mode):
     params.set("FS_GCS_ENABLE", action)
     sub = ArduSub(params)
     sub.arm(True)
-    run(sub, 0.0, 20.0)
+    run(sub, 0.0, 40.0)
     assert sub.armed and not sub.failsafe_gcs                   # no GCS seen yet: no failsafe
-    sub.gcs_heartbeat(255, 20.0)
-    run(sub, 20.0, 24.9)
+    sub.gcs_heartbeat(255, 40.0)
+    run(sub, 40.0, 44.9)
     assert sub.armed
-    run(sub, 24.9, 25.4)                                        # 5 s timeout, checked at 3.3 Hz
+    run(sub, 44.9, 45.4)                                        # 5 s timeout, checked at 3.3 Hz
     assert (sub.armed, sub.mode, sub.failsafe_gcs) == (armed, mode, True)
     assert (4, "MYGCS: 255, heartbeat lost") in sub.texts
+
+
+@pytest.mark.parametrize("firmware", ["4.7", "4.5"])
+def test_gcs_failsafe_says_nothing_in_the_first_30_s_then_every_30_s_and_4_7_says_when_it_clears(firmware):
+    """Sub::failsafe_gcs_check: the warning's clock starts at 0 (boot), so a link lost 5 s after boot is acted on
+    (disarm) at once but announced only past 30 s of uptime, then every 30 s; 4.7 says "GCS Failsafe Cleared"."""
+    params = Params(firmware)
+    params.set("FS_PILOT_INPUT", 0)
+    sub = ArduSub(params)
+    sub.arm(True)
+    sub.gcs_heartbeat(255, 0.0)
+    run(sub, 0.0, 29.9)
+    assert not sub.armed and sub.failsafe_gcs and sub.texts == []
+    run(sub, 29.9, 30.4)
+    assert sub.texts == [(4, "MYGCS: 255, heartbeat lost")]
+    run(sub, 30.4, 61.0)
+    assert sub.texts.count((4, "MYGCS: 255, heartbeat lost")) == 2
+    sub.gcs_heartbeat(255, 61.0)
+    run(sub, 61.0, 62.0)
+    cleared = [(4, "GCS Failsafe Cleared")] if firmware == "4.7" else []
+    assert sub.texts[2:] == cleared and not sub.failsafe_gcs
 
 
 def test_override_from_the_gcs_counts_as_heartbeat_and_others_do_not():
@@ -341,10 +406,15 @@ def test_protocol_commands_and_acks(protocol):
 
 def test_protocol_parameters(protocol):
     proto, _, params, scheduler, changed = protocol
-    banner, frame, *replies = proto.handle(decode(GCS.param_request_list_encode(1, 1)), 0, scheduler, 0.0)
+    banner, frame = proto.handle(decode(GCS.param_request_list_encode(1, 1)), 0, scheduler, 0.0)
     assert (banner[0].text, frame[0].text) == ("ArduSub V4.7.2 (00000000)", "Frame: VECTORED_6DOF")
-    assert [r.param_index for r, _ in replies] == list(range(len(params)))
-    assert {r.param_count for r, _ in replies} == {len(params)}
+    # streamed, PARAMS_PER_SECOND of vehicle time (one or two a 2.5 ms pass), in index order, to the asking link only
+    passes = [proto.queued_params(0, k * 0.0025) for k in range(400)]
+    replies = [r for sent in passes for r in sent]
+    assert max(map(len, passes)) <= 2 and proto.queued_params(1, 1.0) == []
+    assert [r.param_index for r in replies] == list(range(len(params)))
+    assert {r.param_count for r in replies} == {len(params)}
+    assert proto.queued_params(0, 2.0) == []                           # the list is done
     [(value, to_all)] = proto.handle(decode(GCS.param_set_encode(1, 1, b"SERVO1_FUNCTION", 51.2, 4)), 0,
                                      scheduler, 1.0)
     assert (value.param_id, value.param_value, value.param_index, to_all) == ("SERVO1_FUNCTION", 51, 65535, True)

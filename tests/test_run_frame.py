@@ -6,35 +6,21 @@ HEARTBEAT's armed bit."""
 
 from __future__ import annotations
 
-import time
-
 import pytest
-from run_helpers import RUN_WAIT, bridge_with_checker, checker, fresh, runner_against, short_mission
+from run_helpers import (
+    bridge_with_checker,
+    checker,
+    fresh,
+    runner_against,
+    servo_functions_16,
+    short_mission,
+    watch_run,
+)
 
-from rov_mav.flight.vehicle_frame import find_motors
+from rov_mav.flight.vehicle_frame import banner_frame, find_motors
 from rov_mav.model.frames import FRAMES, HEAVY
 
 HEAVY_FILE = "BlueROV2 Heavy"
-
-
-def watch_run(gcs, run) -> tuple[list[str], bool]:
-    """Until the runner exits: the PARAM_VALUEs the vehicle broadcast (a PARAM_SET's echo on every link) and whether
-    any HEARTBEAT showed it armed."""
-    written, armed = [], False
-    deadline = time.monotonic() + RUN_WAIT
-    while run.proc.poll() is None and time.monotonic() < deadline:
-        m = gcs.conn.recv_match(type=["PARAM_VALUE", "HEARTBEAT"], blocking=True, timeout=0.2)
-        if m is None or m.get_srcSystem() != 1:
-            continue
-        if m.get_type() == "PARAM_VALUE":
-            written.append(f"{m.param_id}={m.param_value:g}")
-        else:
-            armed |= bool(m.base_mode & 128)
-    return written, armed
-
-
-def functions(gcs) -> list[int]:
-    return [int(gcs.get_param(f"SERVO{n}_FUNCTION").param_value) for n in range(1, 17)]
 
 
 @pytest.mark.parametrize("params, output, said", [
@@ -51,7 +37,7 @@ def test_another_vehicle_is_refused_in_one_line_and_left_untouched(tmp_path, par
     bridge, port = bridge_with_checker(tmp_path, *[a for p in params for a in ("--param", p)])
     with bridge:
         gcs = checker(port)
-        before = functions(gcs)
+        before = servo_functions_16(gcs)
         with runner_against(bridge, mission, *output) as run:
             written, armed = watch_run(gcs, run)
             code = run.wait()
@@ -59,7 +45,7 @@ def test_another_vehicle_is_refused_in_one_line_and_left_untouched(tmp_path, par
         assert code != 0 and len(refusal) == 1 and said in refusal[0], run.output
         assert "Nothing was changed on it" in refusal[0]
         assert written == [] and not armed, (written, armed)
-        assert functions(gcs) == before
+        assert servo_functions_16(gcs) == before
         assert int(gcs.get_param("MAV_GCS_SYSID").param_value) == 255
 
 
@@ -71,7 +57,7 @@ def test_motors_moved_to_outputs_9_to_16_fly_and_only_those_outputs_are_touched(
     bridge, port = bridge_with_checker(tmp_path, *[a for p in moved for a in ("--param", p)])
     with bridge:
         gcs = checker(port)
-        before = functions(gcs)
+        before = servo_functions_16(gcs)
         assert before == [0] * 8 + list(range(33, 41))
         with runner_against(bridge, mission) as run:
             written, armed = watch_run(gcs, run)
@@ -81,7 +67,7 @@ def test_motors_moved_to_outputs_9_to_16_fly_and_only_those_outputs_are_touched(
         assert {w.split("=")[0] for w in written} <= {f"SERVO{n}_FUNCTION" for n in range(9, 17)} | {
             "MAV_GCS_SYSID_HI"}, written
         assert {f"SERVO{n + 8}_FUNCTION={50 + n}" for n in range(1, 9)} <= set(written)
-        assert functions(gcs) == before
+        assert servo_functions_16(gcs) == before
         out = fresh(gcs, "SERVO_OUTPUT_RAW")
         assert [getattr(out, f"servo{n}_raw") for n in range(1, 9)] == [0] * 8
         assert [getattr(out, f"servo{n}_raw") for n in range(9, 17)] == [1500] * 8
@@ -124,11 +110,22 @@ def test_find_motors_on_the_heavy():
     # ... but not through the motor test, which names the motors
     assert find_motors(heavy_outputs(s11=52), HEAVY, "H", passthrough=False).outputs == tuple(range(1, 9))
     moved = find_motors(heavy_outputs(s2=0, s10=34), HEAVY, "H", True)
-    assert moved.outputs == (1, 10, 3, 4, 5, 6, 7, 8) and moved.describe() == "motors 1-8 on SERVO1, 10, 3, 4, 5, 6, 7, 8"
+    assert moved.outputs == (1, 10, 3, 4, 5, 6, 7, 8)
+    assert moved.describe() == "motors 1-8 on SERVO1, 10, 3, 4, 5, 6, 7, 8"
     assert find_motors(heavy_outputs(s4=0), HEAVY, "H", True) == \
         "motor 4 on no output (SERVO4_FUNCTION is 0, unassigned): H has 8 thrusters"
 
 
 def test_find_motors_refuses_more_motors_than_the_file_has():
     """A vehicle file of a six-motor frame (none ships yet) against a Heavy's outputs."""
-    assert find_motors(heavy_outputs(), FRAMES[1], "V", True) == "motor 7 on SERVO7, 8 on SERVO8: more motors than V's 6"
+    assert find_motors(heavy_outputs(), FRAMES[1], "V", True) == \
+        "motor 7 on SERVO7, 8 on SERVO8: more motors than V's 6"
+
+
+def test_the_banner_names_the_frame_where_frame_config_cannot_be_read():
+    """`GCS_MAVLINK_Sub::send_banner`'s "Frame: <string>": several frames share a string (SIMPLEROV_3 is also CUSTOM's,
+    DEFAULT SimpleROV-4's and -5's); the expected frame is taken when its string is the one said."""
+    assert banner_frame("Frame: VECTORED_6DOF", HEAVY) is HEAVY
+    assert banner_frame("Frame: VECTORED", HEAVY) is FRAMES[1]
+    assert banner_frame("Frame: SIMPLEROV_3", FRAMES[7]) is FRAMES[7]
+    assert banner_frame("Frame: SOMETHING_NEW", HEAVY) is None

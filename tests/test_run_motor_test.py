@@ -13,6 +13,7 @@ import signal
 import time
 
 import pytest
+from pymavlink import mavutil
 from run_helpers import (
     WAIT,
     armed,
@@ -144,3 +145,41 @@ def test_a_review_reads_motor_tests_as_rows_and_skips_what_ardusub_would_not_app
     wall, pwm = recorder.finish().motor_tests[255]
     assert list(wall) == [1.0, 1.2]
     assert pwm.tolist() == [[1500 + 10 * i for i in range(8)], [1500 + 10 * i for i in range(7)] + [1600]]
+
+
+def test_a_disarm_by_another_station_mid_test_stops_the_run_sending_at_once(tmp_path):
+    """Another station disarms the vehicle mid-run. A disarmed ArduSub keeps the last test PWMs on the thrusters and
+    every further DO_MOTOR_TEST, refused, keeps the test alive (ArduSub/motors.cpp): the run must fall silent the
+    moment it sees the refusal or the disarm. Its own log (both directions, stamped as sent and received) shows at
+    most the rest of one tick's burst of eight commands after the first sign; the vehicle's test then times out, the
+    outputs are neutral, and the run exits non-zero saying why."""
+    log = tmp_path / "log"
+    mission = short_mission(tmp_path, goto_x=6.0)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", speedup=SPEEDUP)
+    with runner_against(bridge, mission, "--output", "motor-test", "--log", str(log)) as run, bridge:
+        gcs = checker(checker_port, speedup=SPEEDUP)
+        try:
+            run.wait_for("the thrusters through ArduSub's motor test")
+            _flying(gcs, MOTORS)
+            gcs.send("command_long", 1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
+            assert run.wait() != 0
+            gcs.recv("STATUSTEXT", cond=lambda m: m.text == "Motor test timed out!")
+            assert not armed(gcs) and servo_outputs(gcs) == [1500] * 8
+        finally:
+            gcs.close()
+    assert "stopped sending DO_MOTOR_TEST at once" in run.output, run.output
+    sent, first_sign, accepted = [], None, False
+    conn = mavutil.mavlink_connection(str(log / "mavlink.tlog"))
+    while (m := conn.recv_match()) is not None:
+        kind, source = m.get_type(), m.get_srcSystem()
+        if kind == "COMMAND_LONG" and m.command == mavlink.MAV_CMD_DO_MOTOR_TEST and source != 1:
+            sent.append(m._timestamp)
+        elif source == 1 and kind == "COMMAND_ACK" and m.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
+            accepted |= m.result == mavlink.MAV_RESULT_ACCEPTED
+            if accepted and m.result != mavlink.MAV_RESULT_ACCEPTED and first_sign is None:
+                first_sign = m._timestamp
+        elif source == 1 and kind == "HEARTBEAT" and accepted and not m.base_mode & 128 and first_sign is None:
+            first_sign = m._timestamp
+    assert first_sign is not None
+    after = [t for t in sent if t > first_sign]
+    assert len(after) < 8, f"{len(after)} DO_MOTOR_TEST sent after the vehicle's first refusal or disarm"

@@ -7,8 +7,9 @@ import math
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.flight.truth import EARTH_RADIUS, Truth
+from rov_mav.flight.truth import Truth
 from rov_mav.mission.metrics import truth_metrics
+from rov_mav.units import EARTH_RADIUS
 
 ENCODER = mavlink.MAVLink(None)
 ORIGIN = (-35.363261, 149.165230, 0.0)

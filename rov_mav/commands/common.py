@@ -53,7 +53,7 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                             "plan's planned home, or the vehicle's home)")
     group.add_argument("--plan-speed", type=plan_speed, metavar="M/S",
                        help="speed of the legs between waypoints (default: the plan's cruise speed, or the "
-                            "vehicle's WPNAV_SPEED); DO_CHANGE_SPEED items still change it")
+                            "vehicle's WP_SPD or, before 4.7, WPNAV_SPEED); DO_CHANGE_SPEED items still change it")
     group.add_argument("--skip-unflyable", action="store_true",
                        help="leave out (and list) items this controller cannot fly (takeoff, land, return to "
                             "launch, camera, servo, jumps...) instead of refusing the plan")

@@ -24,8 +24,10 @@ What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/A
 the assisted ones holding attitude, depth and position with simple loops of its own; other modes refused), arming and
 DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
 SET_MESSAGE_INTERVAL / REQUEST_MESSAGE / REQUEST_DATA_STREAM, RC_CHANNELS_OVERRIDE exactly as ArduSub treats it
-(only from the GCS sysid, expiry after RC_OVERRIDE_TIME), SERVOn_FUNCTION routing (33..40 motors through the
-vectored_6dof mixer when armed; 51..66 RCIN passthrough, NOT gated by arming and holding its last value when the
+(only from the GCS sysid, expiry after RC_OVERRIDE_TIME), MANUAL_CONTROL with its buttons, the frame FRAME_CONFIG
+names at start (2, a BlueROV2 Heavy, unless told: --param FRAME_CONFIG=1 is a standard BlueROV2's six motors, on the
+Heavy's hull), SERVOn_FUNCTION routing (33..40 motors through the frame's mixer when armed; 51..66 RCIN
+passthrough, NOT gated by arming and holding its last value when the
 overrides stop), the GCS-heartbeat, pilot-input, leak (FS_LEAK_ENABLE), battery (BATT_LOW_VOLT/CRT_VOLT/_MAH,
 BATT_FS_LOW_ACT/CRT_ACT), EKF (FS_EKF_ACTION/THRESH) and depth-sensor failsafes, SURFACE mode (rises to the
 surface, then ALT_HOLD), MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, and telemetry (ATTITUDE, LOCAL_POSITION_NED,

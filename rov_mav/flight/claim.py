@@ -149,7 +149,8 @@ class VehicleClaim:
         s = self.io.session
         before = s.texts_seen
         s.command(mavlink.MAV_CMD_DO_SEND_BANNER)
-        s.wait(lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith("Frame:"), s.clock.wall_seconds(BANNER_WAIT))
+        s.wait(lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith("Frame:"),
+               s.clock.wall_seconds(BANNER_WAIT))
         lines = [text for text in s.texts_after(before) if text.startswith("Frame:")]
         frame = banner_frame(lines[-1], self.vehicle.frame) if lines else None
         if frame is None:

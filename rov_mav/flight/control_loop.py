@@ -177,6 +177,10 @@ class FlightLoop:
         since = self.io.flying_since
         now = s.clock.now()
         self._watch_vehicle(msg, kind, now)
+        if s.motor_test_stopped is not None:
+            said = s.texts_since(max(now - DISARM_WORDS, since))
+            raise Abort(s.motor_test_stopped + ("; it said just before: " + "; ".join(f"'{text}'" for text in said)
+                                                if said else ""))
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
                 said = s.texts_since(max(now - DISARM_WORDS, since))

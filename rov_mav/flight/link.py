@@ -104,6 +104,7 @@ class Session:
         self.override_rate = 50.0
         self.motor_test: list[int] | None = None   # motor-test PWMs held (resent at `override_rate` vehicle Hz)
         self.motor_test_answers = {"accepted": 0, "refused": 0}   # COMMAND_ACKs of DO_MOTOR_TEST from the vehicle
+        self.motor_test_stopped: str | None = None   # why the held test was dropped for good (a refusal, a disarm)
         self.interrupt: Callable[[], None] | None = None   # called while waiting; may raise to stop waiting
         self.stations: StationWatch | None = None   # other stations on the link, once the vehicle is known
         self.echo = OverrideEcho()            # the overrides sent recently, to recognise them in RC_CHANNELS
@@ -394,11 +395,24 @@ class Session:
     # -- motor test ------------------------------------------------------------------------------------------
 
     def send_motor_test(self, pwms) -> None:
-        """MAV_CMD_DO_MOTOR_TEST of outputs 1-8 (board order, raw PWM) now, and hold them (resent at `override_rate`
+        """MAV_CMD_DO_MOTOR_TEST of motors 1-8 (board order, raw PWM) now, and hold them (resent at `override_rate`
         vehicle Hz). ArduSub runs no mixer during the test and ends it, disarming, MOTOR_TEST_TIMEOUT vehicle s after
-        the last one (ArduSub/motors.cpp, `verify_motor_test`): if this process dies, the thrusters stop."""
+        the last one (ArduSub/motors.cpp, `verify_motor_test`): if this process dies, the thrusters stop. Nothing is
+        sent once the vehicle refused the running test or disarmed (`motor_test_stopped`)."""
+        if self.motor_test_stopped is not None:
+            return
         self.motor_test = [int(round(v)) for v in pwms]
         self._send_motor_test(self.motor_test)
+
+    def _motor_test_refused(self, why: str) -> None:
+        """The vehicle refused the running test or disarmed: stop sending it, for good. A disarmed ArduSub writes
+        nothing to the outputs while the test runs (`Sub::motors_output` calls only `verify_motor_test`), so the last
+        accepted PWMs stay on the thrusters, and every further command, refused, still stamps the test alive
+        (`handle_do_motor_test` stamps first): only silence lets it time out, MOTOR_TEST_TIMEOUT after the last."""
+        self.motor_test = None
+        self.motor_test_stopped = (f"{why}: the run stopped sending DO_MOTOR_TEST at once (any further one, refused, "
+                                   "would hold the last accepted PWMs on the thrusters); ArduSub ends the test "
+                                   f"{MOTOR_TEST_TIMEOUT:g} s after the last")
 
     def end_motor_test(self) -> None:
         """Stop holding the motor test: ArduSub ends it (and disarms) MOTOR_TEST_TIMEOUT later."""
@@ -532,6 +546,8 @@ class Session:
                 self.clock.observe(boot_ms / 1000.0)
             if kind == "HEARTBEAT":
                 self.heartbeat = msg
+                if self.motor_test is not None and self.motor_test_answers["accepted"] and not self.armed:
+                    self._motor_test_refused("the vehicle disarmed during the motor test")
             elif kind in ("GPS_GLOBAL_ORIGIN", "HOME_POSITION"):
                 self.origins[kind] = msg
             elif kind == "TIMESYNC":
@@ -541,6 +557,8 @@ class Session:
                 self.texts_seen += 1
             elif kind == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_MOTOR_TEST:
                 answer = "accepted" if msg.result == mavlink.MAV_RESULT_ACCEPTED else "refused"
+                if answer == "refused" and self.motor_test is not None and self.motor_test_answers["accepted"]:
+                    self._motor_test_refused(f"the vehicle refused the running motor test (MAV_RESULT {msg.result})")
                 self.motor_test_answers[answer] += 1
         else:
             self.stations.observe(msg, self.clock.now())

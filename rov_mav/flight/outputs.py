@@ -160,7 +160,7 @@ class MotorTest(Passthrough):
 
     def after_disarm(self, handing_over: bool, unconfirmed: list[str]) -> list[str]:
         s = self.io.session
-        if s.motor_test is None:
+        if s.motor_test is None and s.motor_test_stopped is None:
             return []
         s.end_motor_test()
         return [f"motor test no longer sent: ArduSub ends it {MOTOR_TEST_TIMEOUT:g} s later (and disarms)"]

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav.flight.model_estimator import ModelEstimator
-from rov_mav.flight.truth import north_east
+from rov_mav.units import north_east
 from rov_mav.flight.vehicle_state import State
 
 FIX_TYPE_3D = 3

@@ -10,18 +10,9 @@ as of the vehicle time it arrives at. Pure: no I/O.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-EARTH_RADIUS = 6378137.0     # m: ArduPilot's flat-earth conversion (`Location::get_distance_NE`)
-
-
-def north_east(lat: float, lon: float, origin: tuple[float, float, float]) -> tuple[float, float]:
-    """m north and east of the origin (lat deg, lon deg, alt m) of a point at lat, lon deg, on the flat earth."""
-    lat0, lon0, _ = origin
-    return (math.radians(lat - lat0) * EARTH_RADIUS,
-            math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)))
+from rov_mav.units import north_east
 
 
 class Truth:

@@ -74,8 +74,11 @@ def find_motors(functions: dict[int, int], frame: Frame, vehicle: str, passthrou
     take them (a motor on no output or on two, a motor the frame does not have; with `passthrough`, another output on
     RC passthrough of a channel the run's overrides write, which would pass a thruster's command on)."""
     n = frame.motors
-    at = {k: [j for j, f in sorted(functions.items()) if f == MOTOR_FUNCTION_BASE + k] for k in range(1, MAX_MOTORS + 1)}
-    rcin = {k: [j for j, f in sorted(functions.items()) if f == PASSTHROUGH_BASE + k] for k in range(1, MAX_MOTORS + 1)}
+    def outputs_of(function: int) -> list[int]:
+        return [j for j, f in sorted(functions.items()) if f == function]
+
+    at = {k: outputs_of(MOTOR_FUNCTION_BASE + k) for k in range(1, MAX_MOTORS + 1)}
+    rcin = {k: outputs_of(PASSTHROUGH_BASE + k) for k in range(1, MAX_MOTORS + 1)}
     stale = {k: rcin[k][0] for k in range(1, n + 1) if not at[k] and len(rcin[k]) == 1}
     problems = []
     if beyond := [k for k in range(n + 1, MAX_MOTORS + 1) if at[k]]:

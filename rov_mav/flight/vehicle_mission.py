@@ -8,7 +8,8 @@ another station uploads) ends the download. Nothing on the vehicle changes.
 What the items mean is `rov_mav.mission.mission_items` (as for a QGroundControl plan), with two differences that
 come from ArduSub: home (item 0, always the vehicle's current home) is the default origin, and a waypoint's yaw is
 not used, because AP_Mission stores only the hold time of a NAV_WAYPOINT (`mavlink_int_to_mission_cmd`) and hands
-back 0 for its param2-4. The legs' speed is the vehicle's WPNAV_SPEED (cm/s), as ArduSub's AUTO flies them.
+back 0 for its param2-4. The legs' speed is the vehicle's WP_SPD (m/s; WPNAV_SPEED in cm/s before 4.7, PR #32147),
+as ArduSub's AUTO flies them.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from rov_mav.mission.mission_items import MissionItem, Planned, PlanOptions, bui
 from rov_mav.mission.missions import Mission
 
 MISSION_TYPE = mavlink.MAV_MISSION_TYPE_MISSION
-SPEED_PARAM = "WPNAV_SPEED"        # cm/s
+SPEED_PARAMS = {"WP_SPD": 1.0, "WPNAV_SPEED": 0.01}    # m/s per unit: 4.7 and later, before 4.7
 
 
 def download(session: Session) -> list[MissionItem]:
@@ -47,9 +48,11 @@ def vehicle_mission(session: Session, options: PlanOptions = PlanOptions()) -> M
         raise config.ConfigError(f"{source}: empty: upload a mission to the vehicle first (QGroundControl's Plan "
                                  f"view, MAVProxy's `wp load FILE`)")
     home = items[0].params[4:6]
-    speed = session.get_params([SPEED_PARAM]).get(SPEED_PARAM)
+    found = session.get_params(list(SPEED_PARAMS), any_of=True)
+    name = next(iter(found), "WP_SPD")
     planned = Planned(name="vehicle_mission", source=source, home=home if any(home) else None,
-                      speed=None if speed is None else speed[0] / 100.0, speed_origin=f"the vehicle's {SPEED_PARAM}",
+                      speed=found[name][0] * SPEED_PARAMS[name] if found else None,
+                      speed_origin=f"the vehicle's {name}",
                       items=items[1:], use_yaw=False)
     return build_mission(planned, options)
 

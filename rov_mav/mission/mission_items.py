@@ -91,7 +91,7 @@ class Planned:
     name: str
     source: str
     home: tuple[float, float] | None      # lat, lon deg of the plan's (or vehicle's) home
-    speed: float | None                   # m/s, the plan's own (QGC's cruiseSpeed, the vehicle's WPNAV_SPEED)
+    speed: float | None                   # m/s, the plan's own (QGC's cruiseSpeed, the vehicle's WP_SPD)
     speed_origin: str                     # where that speed came from, for messages
     items: list[MissionItem]
     use_yaw: bool = True                  # False for a vehicle's items: ArduSub does not store a waypoint's yaw
