@@ -23,17 +23,21 @@ VOLTAGE_RESOLUTION = 0.01       # V: the T200 map is looked up at the battery vo
 NO_PULSE_BELOW = 800            # us: an output this low (0 = unassigned) sends no pulse: the ESC stops
 
 
-def harness(functions: list[int], thrusters: int) -> np.ndarray:
-    """Which output (0-based) each thruster's ESC is plugged into, -1 for none: thruster k where the vehicle was set up
-    to drive motor k (the first output whose SERVOn_FUNCTION was 32 + k when the bridge started; the wires do not move
-    when a parameter changes later). A thruster no output was set up to drive is not plugged in: no pulse, no thrust."""
-    return np.array([next((j for j, f in enumerate(functions) if f == MOTOR_FUNCTION_BASE + k), -1)
-                     for k in range(1, thrusters + 1)])
+class Harness:
+    """Which output each thruster's ESC is plugged into: thruster k where the vehicle was set up to drive motor k (the
+    first output whose SERVOn_FUNCTION was 32 + k when the bridge started; the wires do not move when a parameter
+    changes later). A thruster no output was set up to drive is not plugged in: no pulse, no thrust."""
 
+    def __init__(self, functions: list[int], thrusters: int):
+        self.wires = np.array([next((j for j, f in enumerate(functions) if f == MOTOR_FUNCTION_BASE + k), -1)
+                               for k in range(1, thrusters + 1)])     # 0-based output, -1: none
+        self._straight = bool(np.array_equal(self.wires, np.arange(thrusters)))   # thruster k on output k
 
-def plugged(outputs: np.ndarray, wires: np.ndarray) -> np.ndarray:
-    """The PWM (n,) each thruster receives from the vehicle's outputs (16,) through `harness`'s wires (0: none)."""
-    return np.where(wires >= 0, outputs[np.maximum(wires, 0)], 0)
+    def pwm(self, outputs: np.ndarray) -> np.ndarray:
+        """The PWM (n,) each thruster receives from the vehicle's outputs (16,) (0: none)."""
+        if self._straight:
+            return outputs[:len(self.wires)]
+        return np.where(self.wires >= 0, outputs[np.maximum(self.wires, 0)], 0)
 
 
 class Physics:

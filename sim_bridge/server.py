@@ -45,7 +45,7 @@ from sim_bridge.onboard_log import OnboardLog
 from sim_bridge.pacing import Pacer
 from sim_bridge.params import BUILT_IN_FRAME, INT8, NO_FORWARD, Params, stored_value
 from sim_bridge.routing import Router
-from sim_bridge.physics import Physics, harness, plugged
+from sim_bridge.physics import Harness, Physics
 from sim_bridge.protocol import Protocol
 from sim_bridge.schedule import GROUP_OF, Scheduler
 from sim_bridge.sensors import Sensors
@@ -87,8 +87,8 @@ class Bridge:
                       seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
         battery = Battery(self.params["SIM_BATT_VOLTAGE"], self.params["SIM_BATT_CAP_AH"])
-        self.wires = harness([int(self.params[f"SERVO{n}_FUNCTION"]) for n in range(1, 17)],
-                             len(self.vehicle.thruster_positions))
+        self.harness = Harness([int(self.params[f"SERVO{n}_FUNCTION"]) for n in range(1, 17)],
+                               len(self.vehicle.thruster_positions))
         self.physics = Physics(self.vehicle, plant, battery, thruster_curve(self.vehicle), config.step,
                                self.vehicle_faults)
         # the navigation's sensors (None: ideal, the plant's state plus the environment's noise, as before)
@@ -301,7 +301,7 @@ class Bridge:
             if self.onboard_log is not None:
                 self.onboard_log.step(uptime, self.sub.armed, self.sub.mode, self.snapshot, self.params)
         with self._lock:
-            self.physics.step(plugged(self.servo, self.wires), self.t)
+            self.physics.step(self.harness.pwm(self.servo), self.t)
             self.steps += 1
         previous, phase = phase, self.boot.phase(self.steps)
         if phase != boot.OFF and previous == boot.OFF:

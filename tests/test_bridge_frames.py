@@ -11,7 +11,7 @@ from rov_mav.model.frames import FRAMES, HEAVY, frame_of
 from sim_bridge import mixer
 from sim_bridge.ardusub import ArduSub
 from sim_bridge.params import Params
-from sim_bridge.physics import harness, plugged
+from sim_bridge.physics import Harness
 from sim_bridge.telemetry import banner
 
 T0 = 5.0
@@ -100,14 +100,12 @@ def test_a_standard_bluerov2_drives_only_its_six_thrusters():
     sub = vehicle(1)
     out = stick(sub, ch3=1700)
     assert out[:4] == [1500] * 4 and out[4] == out[5] < 1500 and out[6:8] == [0, 0]
-    wires = harness([int(sub.params[f"SERVO{k}_FUNCTION"]) for k in range(1, 17)], 8)
-    assert list(wires) == [0, 1, 2, 3, 4, 5, -1, -1]
-    assert list(plugged(np.array(out), wires)) == out[:6] + [0, 0]
+    harness = Harness([int(sub.params[f"SERVO{k}_FUNCTION"]) for k in range(1, 17)], 8)
+    assert list(harness.wires) == [0, 1, 2, 3, 4, 5, -1, -1]
+    assert list(harness.pwm(np.array(out))) == out[:6] + [0, 0]
 
 
 def test_the_harness_follows_where_the_motors_were_set_up():
-    functions = [0] * 8 + list(range(33, 41))
-    wires = harness(functions, 8)
-    assert list(wires) == list(range(8, 16))
     outputs = np.arange(16) + 1000
-    assert list(plugged(outputs, wires)) == list(range(1008, 1016))
+    assert list(Harness([0] * 8 + list(range(33, 41)), 8).pwm(outputs)) == list(range(1008, 1016))
+    assert list(Harness(list(range(33, 41)) + [0] * 8, 8).pwm(outputs)) == list(range(1000, 1008))
