@@ -11,6 +11,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # Written in pieces so that this file does not match itself.
 OUTSIDE = ("../" + "shared", "/" + "work/", "DESIGN" + ".md")
 SKIPPED_FOLDERS = {".git", ".venv", "out", "build", "__pycache__", ".pytest_cache"}
+# The one reference allowed: CI points the real-log tests at the logs folder beside the checkout, by a variable.
+ALLOWED = {(".ci/run", "export ROVMAV_REAL_LOGS=")}
 
 
 def tracked_files() -> list[Path]:
@@ -43,7 +45,8 @@ def test_no_file_points_outside_the_repository():
     offenders = {}
     for path in tracked_files():
         name = path.relative_to(ROOT).as_posix()
-        offenders |= {f"{name}:{hit}": None for hit in references_outside(path)}
+        offenders |= {f"{name}:{hit}": None for hit in references_outside(path)
+                      if not any(name == where and text in hit for where, text in ALLOWED)}
     assert not offenders, "paths outside the repository:\n" + "\n".join(offenders)
 
 

@@ -192,8 +192,10 @@ def _sensor_lines(sensors: dict) -> list[str]:
 def _what(m: dict) -> str:
     source = m.get("source", {})
     tlog = source.get("tlog")
-    read = "" if tlog is None else (f"; {tlog['messages']} messages" + ("" if tlog["complete"] else
-                                                                        ", DAMAGED or TRUNCATED (see the warning)"))
+    read = "" if tlog is None else (f"; {tlog['messages']} messages" + (
+        ", DAMAGED or TRUNCATED (see the warning)" if not tlog["complete"] else
+        f", ending with {tlog['bytes'] - tlog['read_up_to_byte']} bytes of an unfinished record (a power-off)"
+        if tlog.get("power_off_tail") else ""))
     return f"{source.get('kind')}{read}"
 
 

@@ -80,9 +80,13 @@ class VehicleId:
     autopilot: int
 
 
+# ArduSub's mode numbers (ArduSub/mode.h, `Mode::Number`): pymavlink's table and the two it lacks
+MODE_NAMES = {**mavutil.mode_mapping_sub, 20: "MOTOR_DETECT", 21: "SURFTRAK"}
+
+
 def mode_name(custom_mode: int) -> str:
-    """ArduSub's name of a custom_mode (MANUAL, POSHOLD, ...), or the number."""
-    return mavutil.mode_mapping_sub.get(custom_mode, str(custom_mode))
+    """ArduSub's name of a custom_mode (MANUAL, POSHOLD, SURFTRAK, ...), or the number."""
+    return MODE_NAMES.get(custom_mode, str(custom_mode))
 
 
 def _enum_name(enum: str, value: int) -> str:

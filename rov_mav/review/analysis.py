@@ -149,15 +149,19 @@ def mode_changes(dive: Dive) -> list[tuple[float, str]]:
     return out
 
 
-def depth_from_pressure(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """(log times, depth m, how) from the Bar30 (SCALED_PRESSURE2's press_abs, hPa): depth = (p - p_surface) /
-    (rho g), with rho = FRESH_WATER x BARO_SPEC_GRAV (ArduSub's fluid: 1.0 fresh, 1.024 salt; 1.0 if the log has no
-    parameters) and p_surface BARO2_GND_PRESS (the pressure the autopilot calibrated at boot, Pa) if the log has it,
-    else the log's lowest pressure (the vehicle at the surface at some point of the dive); None without the sensor."""
+def dive_depth(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """(log times, depth m, how), in this order of trust: the Bar30 (SCALED_PRESSURE2's press_abs, hPa) against the
+    surface pressure the vehicle calibrated at boot (BARO2_GND_PRESS, Pa): depth = (p - p_surface) / (rho g), rho =
+    FRESH_WATER x BARO_SPEC_GRAV (ArduSub's fluid: 1.0 fresh, 1.024 salt); else ArduSub's own altitude, negated
+    (GLOBAL_POSITION_INT.relative_alt; CTUN.Alt in a DataFlash log): a log trimmed of its parameters or started
+    mid-dive has no surface in it; else the Bar30 against the log's lowest pressure (the vehicle at the surface at
+    some point); None without any."""
+    ground = dive.params.get("BARO2_GND_PRESS")
+    if not (ground and dive.pressure_wall.size) and dive.altitude_wall.size:
+        return dive.altitude_wall, -dive.altitude, "ArduSub's own altitude (GLOBAL_POSITION_INT / CTUN.Alt)"
     if not dive.pressure_wall.size:
         return None
     pascal = dive.pressure_abs * 100.0
-    ground = dive.params.get("BARO2_GND_PRESS")
     how = "BARO2_GND_PRESS" if ground else "the log's lowest pressure"
     surface = float(ground) if ground else float(np.nanmin(pascal))
     density = FRESH_WATER * dive.params.get("BARO_SPEC_GRAV", 1.0)
@@ -175,7 +179,7 @@ def own_sensors(dive: Dive) -> dict:
         out["attitude"] = {"samples": int(roll.size), "roll_rms_deg": float(np.sqrt(np.mean(roll ** 2))),
                            "pitch_rms_deg": float(np.sqrt(np.mean(pitch ** 2))), "max_tilt_deg": float(tilt.max()),
                            "heading_start_deg": float(yaw[0] % 360), "heading_end_deg": float(yaw[-1] % 360)}
-    depth = depth_from_pressure(dive)
+    depth = dive_depth(dive)
     if depth is not None:
         _, d, how = depth
         out["depth"] = {"samples": int(d.size), "min_m": float(np.nanmin(d)), "mean_m": float(np.nanmean(d)),

@@ -6,8 +6,9 @@ pymavlink's DFReader decodes every record through the file's own FMT records (la
 without RemPct); fields are looked up by label. Each record becomes the message the vehicle streams for it, stamped
 with its TimeUS as both the log time and the vehicle's time_boot_ms (a DataFlash log has no wall clock without GPS):
     ATT + RATE -> ATTITUDE, XKF1 (core 0) / NKF1 -> LOCAL_POSITION_NED, RCOU -> SERVO_OUTPUT_RAW, RCIN -> RC_CHANNELS,
-    BAT -> SYS_STATUS and BATTERY_STATUS, BARO of the Bar30 (instance 1) -> SCALED_PRESSURE2, RFND looking down ->
-    RANGEFINDER, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a "GCS:" or
+    BAT -> SYS_STATUS and BATTERY_STATUS, BARO of the Bar30 (instance 1) -> SCALED_PRESSURE2, CTUN's Alt (Sub's own
+    altitude) -> GLOBAL_POSITION_INT's relative_alt (no latitude or longitude), RFND looking down
+    with a good status -> RANGEFINDER, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a "GCS:" or
     "SRC=sysid/compid:" text as that station's, `GCS_MAVLINK::handle_statustext`), PARM -> PARAM_VALUE.
 A damaged stretch is skipped (DFReader resynchronises on the next record header); a cut-off last record is dropped,
 and the report says where the file stopped.
@@ -39,6 +40,8 @@ _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
 BAR30_INSTANCE = 1                      # ArduSub's second barometer: the Bar30 (SCALED_PRESSURE2 on the link)
 DOWN = 25                               # MAV_SENSOR_ROTATION_PITCH_270: a rangefinder looking down
+RANGEFINDER_GOOD = 4                    # RFND.Stat (`RangeFinder::Status`): 0 not connected, 1 no data, 2 out of range
+                                        # low, 3 high, 4 good: only a good reading is a distance
 STRETCH = 20000                         # records decoded at a time (a 100 MB log is millions)
 
 
@@ -65,7 +68,7 @@ def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterat
     """(log time s, MAVLink message) for the records of a .BIN, in order; `report` filled in as it goes."""
     path = regular_file(path)
     report = report if report is not None else ReadReport(str(path), 0)
-    report.size = path.stat().st_size
+    report.size, report.dataflash = path.stat().st_size, True
     if report.size == 0:
         raise ConfigError(f"{path}: empty: not a dataflash log")
     with _reader_noise(report):
@@ -74,7 +77,9 @@ def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterat
         except Exception as exc:     # noqa: BLE001 - pymavlink raises anything on a file it cannot index
             raise ConfigError(f"{path}: cannot read as a dataflash log: {exc}") from None
     encoders = {}
-    replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)))
+    with _reader_noise(report):
+        armed = _armed_at_start(reader)
+    replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)), armed)
     try:
         done = False
         while not done:
@@ -105,12 +110,42 @@ def _read(reader, count: int, report: ReadReport) -> tuple[list, bool]:
     return records, False
 
 
+def _armed_at_start(reader) -> bool:
+    """Was the vehicle armed when its log began? ArduSub opens a log at arming unless LOG_DISARMED is 1
+    (`AP_Logger::should_log`), and the arming that opened it is not in it: a log starts armed when its first arming
+    event (ARM, or EV 10/11 in older logs) is a disarm, or, with none, when it was written armed only (LOG_DISARMED
+    0). Read ahead through DFReader's index of each record type, then rewound."""
+    events = [(r.TimeUS, bool(r.ArmState)) for r in _first_records(reader, "ARM", 1)]
+    events += [(r.TimeUS, r.Id == EV_ARMED) for r in _first_records(reader, "EV", None)
+               if r.Id in (EV_ARMED, EV_DISARMED)][:1]
+    written_disarmed = next((r.Value for r in _first_records(reader, "PARM", None) if r.Name == "LOG_DISARMED"), 0)
+    reader.rewind()
+    if events:
+        return not min(events)[1]
+    return not written_disarmed
+
+
+def _first_records(reader, name: str, count: int | None) -> Iterator:
+    """The first `count` (None: all) records of type `name`, read by DFReader's index (offsets per type)."""
+    type_id = reader.name_to_id.get(name)
+    if type_id is None:
+        return
+    for offset in reader.offsets[type_id][:count]:
+        reader.offset = offset
+        try:
+            record = reader.recv_msg()
+        except Exception:        # noqa: BLE001 - a record that decodes to nonsense is no event
+            continue
+        if record is not None and record.get_type() == name:
+            yield record
+
+
 class _Replay:
     """DataFlash records -> the messages ArduSub would have streamed (see the module)."""
 
-    def __init__(self, encoder_of):
+    def __init__(self, encoder_of, armed: bool = False):
         self.encoder_of = encoder_of
-        self.armed = False
+        self.armed = armed
         self.mode = 0
         self.rates = (0.0, 0.0, 0.0)            # rad/s, from the last RATE
 
@@ -143,16 +178,19 @@ class _Replay:
         elif kind in ("BAT", "CURR") and getattr(r, "Inst", getattr(r, "Instance", 0)) == 0:
             volt, curr = getattr(r, "Volt", math.nan), getattr(r, "Curr", math.nan)
             consumed = getattr(r, "CurrTot", math.nan)
-            out.append(enc.sys_status_encode(0, 0, 0, 0, _int(volt * 1000, 65535), _int(curr * 100, -1, signed=True),
-                                             -1, 0, 0, 0, 0, 0, 0))
-            out.append(enc.battery_status_encode(0, 0, 0, 32767, [_int(volt * 1000, 65535)] + [65535] * 9,
-                                                 _int(curr * 100, -1, signed=True), _int(consumed, -1, signed=True),
-                                                 -1, _int(getattr(r, "RemPct", -1), -1, signed=True)))
+            millivolts, centiamps = _fit(volt * 1000, UINT16, 65535), _fit(curr * 100, INT16, -1)
+            out.append(enc.sys_status_encode(0, 0, 0, 0, millivolts, centiamps, -1, 0, 0, 0, 0, 0, 0))
+            # BAT.RemPct 255 is ArduPilot's "unknown", as anything beyond 0-100: BATTERY_STATUS's -1
+            out.append(enc.battery_status_encode(0, 0, 0, 32767, [millivolts] + [65535] * 9, centiamps,
+                                                 _fit(consumed, INT32, -1), -1,
+                                                 _fit(getattr(r, "RemPct", -1), (0, 100), -1)))
         elif kind == "BARO" and getattr(r, "I", 0) == BAR30_INSTANCE and "Press" in fields:
-            out.append(enc.scaled_pressure2_encode(ms, r.Press / 100.0, 0.0, _int(getattr(r, "Temp", 0) * 100, 0,
-                                                                                   signed=True)))
-        elif kind == "RFND" and getattr(r, "Orient", DOWN) == DOWN and "Dist" in fields:
+            out.append(enc.scaled_pressure2_encode(ms, r.Press / 100.0, 0.0, _fit(getattr(r, "Temp", 0) * 100, INT16, 0)))
+        elif kind == "RFND" and getattr(r, "Orient", DOWN) == DOWN and "Dist" in fields \
+                and getattr(r, "Stat", RANGEFINDER_GOOD) == RANGEFINDER_GOOD:
             out.append(enc.rangefinder_encode(float(r.Dist), 0.0))
+        elif kind == "CTUN" and "Alt" in fields:          # Sub's altitude estimate (m, negative underwater)
+            out.append(enc.global_position_int_encode(ms, 0, 0, 0, _fit(r.Alt * 1000, INT32, 0), 0, 0, 0, 65535))
         elif kind == "MODE":
             self.mode = int(getattr(r, "ModeNum", getattr(r, "Mode", 0)))
             out.append(self._heartbeat(enc))
@@ -192,7 +230,12 @@ def _channels(r, count: int) -> list[int]:
     return out + [0] * (count - len(out))
 
 
-def _int(value: float, missing: int, signed: bool = False) -> int:
-    if not math.isfinite(value):
+UINT16, INT16, INT32 = (0, 65534), (-32768, 32767), (-2**31, 2**31 - 1)   # the MAVLink fields' ranges (65535: unset)
+
+
+def _fit(value: float, limits: tuple[int, int], missing: int) -> int:
+    """`value` rounded for a MAVLink field whose values lie within `limits`; `missing` (the field's "unknown") when it
+    is not a number or lies beyond them: never clamped to a value the vehicle did not log."""
+    if not math.isfinite(value) or not limits[0] <= round(value) <= limits[1]:
         return missing
-    return int(round(value)) if signed else min(max(int(round(value)), 0), 65535)
+    return int(round(value))

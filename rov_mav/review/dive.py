@@ -23,6 +23,7 @@ from rov_mav.mission.mission_items import MissionItem
 
 HELD = 20000                 # messages held while the vehicle is not yet known
 UNSET = (0, 65535)           # RC_CHANNELS_OVERRIDE values that leave a channel alone
+INVALID_SIGNAL = 1           # DISTANCE_SENSOR.signal_quality: 0 unknown, 1 invalid, up to 100 perfect
 
 
 @dataclass
@@ -67,6 +68,9 @@ class Dive:
     attitude: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (A, 3) ... roll, pitch, yaw (rad)
     pressure_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (B,) SCALED_PRESSURE2's log times ...
     pressure_abs: np.ndarray = field(default_factory=lambda: np.zeros(0))   # (B,) ... press_abs (hPa)
+    altitude_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (U,) GLOBAL_POSITION_INT's log times ...
+    altitude: np.ndarray = field(default_factory=lambda: np.zeros(0))       # (U,) ... relative_alt: ArduSub's own
+                                                                            # altitude (m, up; negative underwater)
     range_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (R,) the rangefinder's log times ...
     range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (R,) ... its distance (m)
 
@@ -78,6 +82,7 @@ class DiveRecorder:
         self._truth = History(wall=1, position=3)
         self._attitude = History(wall=1, rpy=3)
         self._pressure = History(wall=1, abs=1)
+        self._altitude = History(wall=1, m=1)
         self._range = History(wall=1, m=1)
         self.vehicle: tuple[int, int] | None = None
         self.vehicle_type: int | None = None
@@ -139,6 +144,7 @@ class DiveRecorder:
             truth_wall=self._truth.column("wall"), truth=self._truth.column("position"),
             attitude_wall=self._attitude.column("wall"), attitude=self._attitude.column("rpy"),
             pressure_wall=self._pressure.column("wall"), pressure_abs=self._pressure.column("abs"),
+            altitude_wall=self._altitude.column("wall"), altitude=self._altitude.column("m"),
             range_wall=self._range.column("wall"), range_m=self._range.column("m"))
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
@@ -155,8 +161,17 @@ class DiveRecorder:
     def _route(self, wall: float, msg) -> None:
         if (msg.get_srcSystem(), msg.get_srcComponent()) == self.vehicle:
             self._from_vehicle(wall, msg)
+        elif msg.get_srcSystem() == self.vehicle[0] and msg.get_type() == "DISTANCE_SENSOR":
+            self._rangefinder(wall, msg)                # an echo sounder of the companion's (BlueOS's Ping service)
         else:
             self._from_station(wall, msg)
+
+    def _rangefinder(self, wall: float, msg) -> None:
+        """DISTANCE_SENSOR facing down, within its range and not flagged invalid: the distance above the bottom."""
+        if msg.orientation == mavlink.MAV_SENSOR_ROTATION_PITCH_270 \
+                and msg.min_distance <= msg.current_distance <= msg.max_distance \
+                and getattr(msg, "signal_quality", 0) != INVALID_SIGNAL:
+            self._range.append(wall=wall, m=msg.current_distance / 100.0)
 
     # -- the vehicle's messages ------------------------------------------------------------------------------
 
@@ -178,9 +193,10 @@ class DiveRecorder:
             self._attitude.append(wall=wall, rpy=[msg.roll, msg.pitch, msg.yaw])
         elif kind == "SCALED_PRESSURE2":                    # the Bar30, ArduSub's second barometer
             self._pressure.append(wall=wall, abs=msg.press_abs)
-        elif kind == "DISTANCE_SENSOR" and msg.orientation == mavlink.MAV_SENSOR_ROTATION_PITCH_270 \
-                and msg.min_distance <= msg.current_distance <= msg.max_distance:
-            self._range.append(wall=wall, m=msg.current_distance / 100.0)      # facing down: above the bottom
+        elif kind == "GLOBAL_POSITION_INT":                 # Sub's alt/relative_alt: its depth estimate, negated
+            self._altitude.append(wall=wall, m=msg.relative_alt / 1000.0)
+        elif kind == "DISTANCE_SENSOR":
+            self._rangefinder(wall, msg)
         elif kind == "RANGEFINDER":
             self._range.append(wall=wall, m=msg.distance)
         elif kind == "SERVO_OUTPUT_RAW":

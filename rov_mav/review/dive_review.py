@@ -169,8 +169,9 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
                         columns=columns, planned=planned, reference_path=reference_path)
     commands = {} if not thrusters else {f"commanded (sysid {main})": (command_t[in_window] - t0,
                                                                        stream[main][1][in_window])}
-    _dive_figures(review, dive, t0, window, commands, source="telemetry log")
-    metrics["source"] = _source(path, "telemetry log", report)
+    kind = "DataFlash log" if report.dataflash else "telemetry log"
+    _dive_figures(review, dive, t0, window, commands, source=kind)
+    metrics["source"] = _source(path, kind, report)
     return review
 
 
@@ -230,7 +231,7 @@ def _attitude_columns(dive: Dive, t0: float, command_t: np.ndarray) -> TickColum
     """Without a position: ticks at the ATTITUDE samples, the vehicle at north = east = 0, its depth the Bar30's
     (held; 0 without it), for the recording."""
     t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
-    depth = analysis.depth_from_pressure(dive)
+    depth = analysis.dive_depth(dive)
     down = _held(analysis.vehicle_time(dive, depth[0]) - t0, depth[1], t) if depth is not None else np.zeros(t.size)
     eta = np.column_stack([np.zeros(t.size), np.zeros(t.size), down, dive.attitude])
     return _tlog_columns(dive, t, t0, None, command_t, eta)
@@ -496,11 +497,12 @@ def _timeline(dive: Dive, t0: float, state_t: np.ndarray, stale_ms: float) -> li
         panels.append(("battery (V)", {"voltage": (power_t, dive.voltage)}))
     if np.isfinite(dive.current).any():
         panels.append(("current (A)", {"current": (power_t, dive.current)}))
-    depth = analysis.depth_from_pressure(dive)
+    depth = analysis.dive_depth(dive)
     if dive.state_t.size or depth is not None:
         lines = {"z (the estimate)": (dive.state_t - t0, dive.eta[:, 2])} if dive.state_t.size else {}
         if depth is not None:
-            lines["Bar30"] = (analysis.vehicle_time(dive, depth[0]) - t0, depth[1])
+            lines["Bar30" if depth[2].startswith("Bar30") else "ArduSub"] = (
+                analysis.vehicle_time(dive, depth[0]) - t0, depth[1])
         panels.append(("depth (m)", lines))
     if dive.attitude.size:
         att_t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
@@ -518,5 +520,6 @@ def _source(path: Path, kind: str, report: ReadReport | None) -> dict:
     if report is not None:
         out["tlog"] = {"path": report.path, "bytes": report.size, "messages": report.messages,
                        "complete": report.complete, "read_up_to_byte": report.end,
+                       "power_off_tail": report.power_off_tail,
                        "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times}
     return out

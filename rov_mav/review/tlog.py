@@ -21,6 +21,7 @@ from rov_mav.flight.link import mavutil
 STAMP = 8                 # bytes of timestamp before each packet
 TIME_JUMP = 60.0          # s: a record's wall time this far from both neighbours is a damaged timestamp
 DATAFLASH_TEXT = ".log"   # the DataFlash text form (mavlogdump's, old ArduPilot's): not read
+MAX_RECORD = 256          # bytes: a DataFlash record's largest size (its length field is one byte)
 
 
 @dataclass
@@ -34,15 +35,22 @@ class ReadReport:
     damaged: list[tuple[int, int]] = field(default_factory=list)   # [start, end) stretches skipped
     fixed_times: int = 0                           # records whose timestamp was replaced
     last_wall: float | None = None                 # wall time (s since the epoch) of the last whole record
+    dataflash: bool = False                        # a vehicle's on-board log (.BIN), not a telemetry log
 
     @property
     def truncated(self) -> bool:
         return self.end < self.size
 
     @property
+    def power_off_tail(self) -> bool:
+        """A DataFlash log whose only flaw is an unfinished last record, shorter than any record can be: how a log
+        ends when the vehicle's power goes (AP_Logger writes whole blocks as they fill), not damage."""
+        return self.dataflash and self.truncated and not self.damaged and self.size - self.end < MAX_RECORD
+
+    @property
     def complete(self) -> bool:
-        """Read whole: nothing damaged, nothing cut."""
-        return not (self.truncated or self.damaged or self.fixed_times)
+        """Read whole: nothing damaged, nothing cut but a power-off's unfinished last record."""
+        return not ((self.truncated and not self.power_off_tail) or self.damaged or self.fixed_times)
 
     def describe(self) -> str:
         """One line: complete, or where it was damaged and where it stopped."""
@@ -53,7 +61,10 @@ class ReadReport:
             parts.append(f"{skipped} damaged bytes skipped in {len(self.damaged)} place(s) (bytes {where})")
         if self.fixed_times:
             parts.append(f"{self.fixed_times} damaged timestamp(s) replaced")
-        if self.truncated:
+        if self.power_off_tail:
+            parts.append(f"STOPPED at byte {self.end}: the last {self.size - self.end} bytes are an unfinished record, "
+                         "as a power-off leaves a log's end")
+        elif self.truncated:
             parts.append(f"STOPPED at byte {self.end}: the last {self.size - self.end} bytes are not a whole record "
                          "(truncated or damaged end)")
         return "; ".join(parts) if len(parts) > 1 else parts[0] + ", complete"
