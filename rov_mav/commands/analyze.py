@@ -162,6 +162,9 @@ def summary(label: str, m: dict) -> list[str]:
         used = f", {b['consumed_mah']:.0f} mAh used ({b['consumed_from']})" if _finite(b.get("consumed_mah")) else ""
         lines.append(f"  battery: {_num(b['start_v'], '.2f')} V -> {_num(b['end_v'], '.2f')} V, lowest "
                      f"{_num(b['min_v'], '.2f')} V at t = {_num(b['min_at_s'], '.1f')} s{used}")
+    if (v := m.get("vehicle", {})).get("firmware") or v.get("frame"):
+        lines.append(f"  vehicle: ArduSub {v.get('firmware') or '(version not in the log)'}, "
+                     f"{v.get('frame') or 'frame not in the log'}")
     modes = m.get("modes", [])
     if modes:
         shown = "; ".join(f"{e['t']:.1f} s {e['event']}" for e in modes[:MODES_SHOWN])

@@ -9,9 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
+import re
+
 from rov_mav.flight.actuation import PWM_TOLERANCE
 from rov_mav.flight.link import CHANNELS, mode_name
+from rov_mav.model.frames import frame_of, frames_by_string
 from rov_mav.review.dive import Dive
+
+FIRMWARE_TEXT = re.compile(r"^ArduSub V(\S+)")   # the banner's first line (`GCS_MAVLINK::send_banner`)
 
 STALE_PERIODS = 3.0                 # the runner's watchdog: telemetry older than 3 periods is stale
 PWM_LIMITS = (1100.0, 1900.0)       # us: ArduSub's SERVOn_MIN / SERVOn_MAX defaults
@@ -167,6 +172,22 @@ def dive_depth(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None:
     density = FRESH_WATER * dive.params.get("BARO_SPEC_GRAV", 1.0)
     depth = (pascal - surface) / (density * GRAVITY)
     return dive.pressure_wall, depth, f"Bar30 (SCALED_PRESSURE2), surface pressure {how}"
+
+
+def identity(dive: Dive) -> dict:
+    """Which ArduSub, on which frame: the firmware the banner named ("ArduSub V4.1.0 (...)"), the frame by
+    FRAME_CONFIG or, without the parameter, the banner's "Frame: ..." line (`GCS_MAVLINK_Sub::send_banner`); each
+    None when the log does not say."""
+    vehicle = dive.vehicle[0] if dive.vehicle else None
+    texts = [text for _, sysid, _, text in dive.texts if sysid == vehicle]
+    firmware = next((found.group(1) for text in texts if (found := FIRMWARE_TEXT.match(text))), None)
+    frame = None
+    if "FRAME_CONFIG" in dive.params:
+        frame = frame_of(int(dive.params["FRAME_CONFIG"])).describe()
+    elif banner := next((text for text in texts if text.startswith("Frame:")), None):
+        named = frames_by_string(banner.removeprefix("Frame:").strip())
+        frame = f"{banner.strip()} ({named[0].motors} motors)" if named else banner.strip()
+    return {"firmware": firmware, "frame": frame}
 
 
 def own_sensors(dive: Dive) -> dict:

@@ -479,7 +479,7 @@ def _dive_figures(review: DiveReview, dive: Dive, t0: float, window: tuple[float
     events.sort(key=lambda e: e[0])
     review.timeline = _timeline(dive, t0, state_t, link["stale_after_ms"])
     m["vehicle"] = {"sysid": vehicle, "compid": dive.vehicle[1], "type": dive.vehicle_type,
-                    "other_systems": sorted(dive.others)}
+                    "other_systems": sorted(dive.others), **analysis.identity(dive)}
     m["sensors"] = analysis.own_sensors(dive)
 
 
@@ -521,5 +521,7 @@ def _source(path: Path, kind: str, report: ReadReport | None) -> dict:
         out["tlog"] = {"path": report.path, "bytes": report.size, "messages": report.messages,
                        "complete": report.complete, "read_up_to_byte": report.end,
                        "power_off_tail": report.power_off_tail,
-                       "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times}
+                       "damaged_bytes": [[a, b] for a, b in report.damaged], "timestamps_replaced": report.fixed_times,
+                       "unchecked_messages": [{"sysid": s, "compid": c, "msgid": m, "count": n}
+                                              for (s, c, m), n in sorted(report.unchecked.items())]}
     return out

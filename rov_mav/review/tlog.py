@@ -36,6 +36,8 @@ class ReadReport:
     fixed_times: int = 0                           # records whose timestamp was replaced
     last_wall: float | None = None                 # wall time (s since the epoch) of the last whole record
     dataflash: bool = False                        # a vehicle's on-board log (.BIN), not a telemetry log
+    unchecked: dict[tuple[int, int, int], int] = field(default_factory=dict)   # (sysid, compid, msgid) -> whole
+                                                   # packets whose CRC did not check: of another definition version
 
     @property
     def truncated(self) -> bool:
@@ -61,6 +63,12 @@ class ReadReport:
             parts.append(f"{skipped} damaged bytes skipped in {len(self.damaged)} place(s) (bytes {where})")
         if self.fixed_times:
             parts.append(f"{self.fixed_times} damaged timestamp(s) replaced")
+        if self.unchecked:
+            parts.append(f"{sum(self.unchecked.values())} whole message(s) whose CRC did not check against "
+                         "pymavlink's definitions, not read (another definition version: "
+                         + ", ".join(f"{n} of msgid {m} from {s}/{c}" for (s, c, m), n in
+                                     sorted(self.unchecked.items(), key=lambda kv: -kv[1])[:4])
+                         + (" ..." if len(self.unchecked) > 4 else "") + ")")
         if self.power_off_tail:
             parts.append(f"STOPPED at byte {self.end}: the last {self.size - self.end} bytes are an unfinished record, "
                          "as a power-off leaves a log's end")
@@ -86,6 +94,8 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
     report = report if report is not None else ReadReport(str(path), 0)
     report.size = path.stat().st_size
     window: list[list] = []            # up to three [wall, msg] records: the middle one is judged by its neighbours
+    autopilots: set[tuple[int, int]] = set()        # (sysid, compid) of the ArduPilot autopilots heard
+    passed_over: list[tuple[int, int, list]] = []   # whole packets pymavlink did not decode: (start, end, their keys)
     try:
         while True:
             msg = conn.recv_msg()
@@ -96,8 +106,13 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
             end = conn.f.tell()
             start = end - STAMP - len(msg.get_msgbuf())
             wall = msg._timestamp
+            if msg.get_type() == "HEARTBEAT" and msg.autopilot == mavutil.mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA:
+                autopilots.add((msg.get_srcSystem(), msg.get_srcComponent()))
             if start != report.end:
-                report.damaged.append((report.end, start))
+                if (packets := _whole_packets(raw, report.end, start)) is None:
+                    report.damaged.append((report.end, start))
+                else:
+                    passed_over.append((report.end, start, packets))
                 wall = _stamp_at(raw, start)
             report.end = end
             report.messages += 1
@@ -110,6 +125,7 @@ def read_tlog(path: str | Path, report: ReadReport | None = None) -> Iterator[tu
             report.fixed_times += 1
         for record in window:
             yield _done(record, report)
+        _sort_passed_over(passed_over, autopilots, report)
     finally:
         conn.close()
         raw.close()
@@ -128,6 +144,43 @@ def regular_file(path: str | Path) -> Path:
     if not stat.S_ISREG(mode):
         raise ConfigError(f"{path}: not a regular file (a device, FIFO or socket)")
     return path
+
+
+def _sort_passed_over(passed_over: list, autopilots: set, report: ReadReport) -> None:
+    """Whole packets pymavlink passed over: from an ArduPilot autopilot of the log (its HEARTBEAT decoded: it speaks
+    the definitions pymavlink has) the packet was damaged; from another component (a companion's service, a camera
+    manager, built on another definition version) it is counted by source and id, not called damage."""
+    for start, end, keys in passed_over:
+        if any(key[:2] in autopilots for key in keys):
+            report.damaged.append((start, end))
+        else:
+            for key in keys:
+                report.unchecked[key] = report.unchecked.get(key, 0) + 1
+    report.damaged.sort()
+
+
+def _whole_packets(raw, start: int, end: int) -> list[tuple[int, int, int]] | None:
+    """(sysid, compid, msgid) of each record in bytes [start, end) when they are whole timestamped MAVLink packets,
+    framed as MAVLink 1 or 2 frames them, that pymavlink passed over (a CRC of another definition version: a
+    companion's service, a camera manager); None when the bytes are not that (damage)."""
+    raw.seek(start)
+    data = raw.read(end - start)
+    found, at = [], 0
+    while at < len(data):
+        head = data[at + STAMP:at + STAMP + 10]
+        if len(head) < 6:
+            return None
+        if head[0] == 0xFD and len(head) == 10:           # MAVLink 2: len, incompat, compat, seq, sys, comp, id x3
+            size = 12 + head[1] + (13 if head[2] & 1 else 0)
+            key = (head[5], head[6], head[7] | head[8] << 8 | head[9] << 16)
+        elif head[0] == 0xFE:                              # MAVLink 1: len, seq, sys, comp, id
+            size = 8 + head[1]
+            key = (head[3], head[4], head[5])
+        else:
+            return None
+        at += STAMP + size
+        found.append(key)
+    return found if at == len(data) else None
 
 
 def _stamp_at(raw, offset: int) -> float:
