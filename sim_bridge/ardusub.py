@@ -57,8 +57,7 @@ import numpy as np
 
 from rov_mav.model.frames import MAX_MOTORS, frame_of
 from rov_mav.units import north_east
-from sim_bridge import arming, joystick, mixer, modes, surface
-from sim_bridge import buttons as buttons_
+from sim_bridge import arming, buttons, joystick, mixer, modes, surface
 from sim_bridge.failsafes import Failsafes, Sensors
 from sim_bridge import guided
 from sim_bridge.guided import Guided
@@ -150,7 +149,7 @@ class ArduSub:
         self._gcs_seen = t
         return True
 
-    def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float, buttons: int = 0) -> bool:
+    def manual_control(self, sysid: int, target: int, axes: tuple[int, ...], t: float, pressed: int = 0) -> bool:
         """MANUAL_CONTROL's (x, y, z, r, s, t) and 32 buttons from `sysid` to `target`; False (ignored) unless from
         a GCS sysid and aimed at this vehicle. The buttons act as `sim_bridge.buttons` says, after the axes."""
         if not self.params.is_gcs(sysid) or target != self.sysid:
@@ -159,7 +158,7 @@ class ArduSub:
                                       lights=self._lights, firmware=self.params.firmware)
         for ch, value in enumerate(values):
             self.rc.set_override(ch, value, t)
-        for action, value in buttons_.press(self.params, buttons):
+        for action, value in buttons.press(self.params, pressed):
             if action == "mode":
                 self.set_mode(value)
             else:

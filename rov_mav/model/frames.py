@@ -67,7 +67,6 @@ FRAMES = {f.config: f for f in (
 )}
 CONFIG_NAMES = {0: "BLUEROV1", 1: "VECTORED", 2: "VECTORED_6DOF", 3: "VECTORED_6DOF_90DEG", 4: "SIMPLEROV_3",
                 5: "SIMPLEROV_4", 6: "SIMPLEROV_5", 7: "CUSTOM"}    # the FRAME_CONFIG parameter's own labels
-DEFAULT_CONFIG = 1                # ArduSub/Parameters.cpp: FRAME_CONFIG defaults to VECTORED
 HEAVY = FRAMES[2]                 # the BlueROV2 Heavy
 
 
