@@ -124,7 +124,7 @@ class VehicleClaim:
         frame = frame_of(int(found["FRAME_CONFIG"][0])) if "FRAME_CONFIG" in found else self._banner_frame()
         refusal = frame_refusal(frame, expected, self.vehicle.name)
         if refusal is not None:
-            raise Abort(f"refusing to fly this vehicle: {refusal}. Nothing was changed on it")
+            raise _refusal(refusal)
         said = f"frame: {frame.describe()}" + ("" if "FRAME_CONFIG" in found else ' (from its "Frame:" banner)')
         if missing := [n for n in names if n not in found]:
             if self.needs == FRAME:
@@ -135,7 +135,7 @@ class VehicleClaim:
         motors = find_motors(functions, expected, self.vehicle.name, passthrough=self.needs == THRUSTERS)
         if isinstance(motors, str):
             if self.needs != FRAME:
-                raise Abort(f"refusing to fly this vehicle: {motors}. Nothing was changed on it")
+                raise _refusal(motors)
             io.say(f"{said}: ArduSub's own mixer drives its motors; but {motors}", "warning")
             return
         io.motors = motors
@@ -154,8 +154,8 @@ class VehicleClaim:
         lines = [text for text in s.texts_after(before) if text.startswith("Frame:")]
         frame = banner_frame(lines[-1], self.vehicle.frame) if lines else None
         if frame is None:
-            raise Abort("refusing to fly this vehicle: it gave neither FRAME_CONFIG nor a known \"Frame:\" line ("
-                        + (repr(lines[-1]) if lines else "no banner") + "). Nothing was changed on it")
+            raise _refusal("it gave neither FRAME_CONFIG nor a known \"Frame:\" line ("
+                           + (repr(lines[-1]) if lines else "no banner") + ")")
         return frame
 
     def _read_outputs(self) -> list[str]:
@@ -296,6 +296,11 @@ class VehicleClaim:
         slow = [why for k, r in rates.items() if (why := too_slow(k, r, io.options.rate)) is not None]
         if slow:
             raise Abort("telemetry too slow for the control rate: " + "; ".join(slow))
+
+
+def _refusal(why: str) -> Abort:
+    """The one line a vehicle the vehicle file does not describe is refused with."""
+    return Abort(f"refusing to fly this vehicle: {why}. Nothing was changed on it")
 
 
 _MISSING_HELP = {

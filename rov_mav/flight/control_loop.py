@@ -170,6 +170,11 @@ class FlightLoop:
                         "meanwhile (run it with --realtime, or on a less busy computer)")
         return now
 
+    def _said_before(self, now: float, since: float) -> str:
+        """"; it said just before: '...'" with the vehicle's texts of the last DISARM_WORDS s of the run, or ""."""
+        said = self.io.session.texts_since(max(now - DISARM_WORDS, since))
+        return "; it said just before: " + "; ".join(f"'{text}'" for text in said) if said else ""
+
     def _watch(self, msg, kind: str) -> None:
         """While the vehicle is ours: has it failed (its failsafes, a reboot: `vehicle_events`), and is anyone else
         driving it? (VehicleFailsafe, HandOver; Abort if it rebooted or was disarmed.)"""
@@ -178,14 +183,11 @@ class FlightLoop:
         now = s.clock.now()
         self._watch_vehicle(msg, kind, now)
         if s.motor_test_stopped is not None:
-            said = s.texts_since(max(now - DISARM_WORDS, since))
-            raise Abort(s.motor_test_stopped + ("; it said just before: " + "; ".join(f"'{text}'" for text in said)
-                                                if said else ""))
+            raise Abort(s.motor_test_stopped + self._said_before(now, since))
         if kind == "HEARTBEAT":
             if not msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
-                said = s.texts_since(max(now - DISARM_WORDS, since))
-                raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)" + (
-                    "; it said just before: " + "; ".join(f"'{text}'" for text in said) if said else ""))
+                raise Abort("the vehicle was disarmed during the run (a failsafe, or another station)"
+                            + self._said_before(now, since))
             if msg.custom_mode != self.output.flight_mode:
                 mode = mode_name(msg.custom_mode)
                 if mode == "SURFACE":
