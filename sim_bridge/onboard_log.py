@@ -2,14 +2,16 @@
 
 Files and rotation as `AP_Logger_File` and `AP_Logger` do them: `DIR/%08u.BIN`, numbered one past LASTLOG.TXT (which
 then holds the new number and CRLF); a file starts at arming when LOG_DISARMED is 0 (the default: a re-arm in the
-same boot goes on in the same file) and at boot otherwise; LOG_FILE_DSRMROT 1 closes it at disarm (with
-LOG_DISARMED 0: one file per arming); a reboot closes it. Each file starts with the whole header
-(`dataflash.header_records`) and the mode. ARM at each arming and disarming. Data records: ATT, RATE, RCIN, RCOU, CTUN, BARO (the water pressure
+same boot goes on in the same file) and at boot otherwise; LOG_FILE_DSRMROT 1 closes it at disarm (with LOG_DISARMED
+0: one file per arming); a reboot closes it. Each file starts with the whole header (`dataflash.header_records`) and
+the mode. ARM at each arming and disarming. Data records: ATT, RATE, RCIN, RCOU, CTUN, BARO (the water pressure
 sensor, instance 1), XKF1, POS and BAT at 10 Hz (ArduSub's 10 Hz loop and its medium attitude rate, `ArduSub.cpp`)
-while the vehicle is armed, and for HAL_LOGGER_ARM_PERSIST (15 s) after it disarms; MODE at each mode change; MSG for
-every text the vehicle sends, and for every STATUSTEXT a station sends it (`GCS_MAVLINK::handle_statustext`: "GCS:"
-before a GCS sysid's text, "SRC=sysid/compid:" before another's); PARM for every parameter set (Default NaN, as
-`AP_Logger::Write_Parameter`). Left out: IMU, XKF2-5, GPS, PID and the rest a real log carries.
+while the vehicle is armed, and for HAL_LOGGER_ARM_PERSIST (15 s) after it disarms; MODE at each mode change; MSG
+for every text the vehicle sends, and for every STATUSTEXT a station sends it (`GCS_MAVLINK::handle_statustext`:
+"GCS:" before a GCS sysid's text, "SRC=sysid/compid:" before another's); PARM for every parameter set (Default NaN,
+as `AP_Logger::Write_Parameter`). ATT's DesRoll/DesPitch/DesYaw and CTUN's DAlt are the attitude and depth the
+vehicle holds, NaN where it holds none (MANUAL, ACRO's angles, GUIDED, disarmed). Left out: IMU, XKF2-5, GPS, PID
+and the rest a real log carries.
 """
 
 from __future__ import annotations
@@ -161,6 +163,8 @@ class OnboardLog:
     def _data(self, t: float, s: Snapshot) -> None:
         us = self._us(t)
         roll, pitch, yaw = (math.degrees(a) for a in s.eta[3:6])
+        target_roll, target_pitch, target_yaw = (math.degrees(a) for a in s.targets[:3])   # NaN: not held
+        target_depth = s.targets[3]
         p, q, r = (math.degrees(w) for w in s.nu[3:6])
         v = s.ned_velocity()
         depth = float(s.eta[2])
@@ -176,12 +180,12 @@ class OnboardLog:
         pressure = SURFACE_PRESSURE + s.water_density * s.gravity * bar30
         f = FORMATS
         self._buffer += [
-            record(f["ATT"], us, 0.0, roll, 0.0, pitch, yaw % 360.0, yaw % 360.0, 3),
+            record(f["ATT"], us, target_roll, roll, target_pitch, pitch, target_yaw % 360.0, yaw % 360.0, 3),
             record(f["RATE"], us, 0.0, p, 0.0, 0.0, q, 0.0, 0.0, r, 0.0, 0.0, -v[2] * 100.0, s.throttle, 0.0),
             record(f["RCIN"], us, *np.asarray(s.rc_in[:14], dtype=float)),
             record(f["RCOU"], us, *np.asarray(s.servo[:14], dtype=float)),
-            record(f["CTUN"], us, s.throttle, 0.0, s.throttle, 0.5, -depth, -depth, -bar30, math.nan, math.nan, 0.0,
-                   0, -v[2] * 100.0),
+            record(f["CTUN"], us, s.throttle, 0.0, s.throttle, 0.5, -target_depth, -depth, -bar30, math.nan, math.nan,
+                   0.0, 0, -v[2] * 100.0),
             record(f["BARO"], us, 1, -bar30, alt0 - bar30, pressure, WATER_TEMPERATURE, climb, us // 1000, 0.0,
                    WATER_TEMPERATURE, int(s.depth_healthy)),
             record(f["XKF1"], us, 0, roll, pitch, yaw % 360.0, v[0], v[1], v[2], v[2], s.eta[0], s.eta[1], depth,

@@ -211,7 +211,8 @@ class Bridge:
             ekf_variances=avionics.variances(uptime), battery_state=sub.failsafes.battery,
             battery_failsafed=sub.failsafes.battery_failsafed, depth_present=avionics.depth_present,
             depth_healthy=avionics.bar30 is None, bar30_depth=avionics.bar30,
-            truth=(self.physics.plant.eta, self.physics.plant.nu))
+            truth=(self.physics.plant.eta, self.physics.plant.nu), targets=sub.holds.targets() if sub.armed else
+            (math.nan,) * 4)
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:

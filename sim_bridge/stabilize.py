@@ -49,6 +49,7 @@ class Holds:
     def reset(self) -> None:
         """Forget the targets (on a mode change or when disarmed): the next step captures the current state."""
         self.heading: float | None = None
+        self.lean: tuple[float, float] | None = None   # roll and pitch targets (rad) while angles are held
         self.depth: float | None = None
         self.position: tuple[float, float] | None = None
         self.depth_integral = 0.0
@@ -62,10 +63,12 @@ class Holds:
         phi, theta, psi = eta[3:6]
         p, q, r = nu[3:6]
         if mode == ACRO:
+            self.lean = None
             out = [RATE_P * (roll * MAX_RATE - p), RATE_P * (pitch * MAX_RATE - q), RATE_P * (yaw * MAX_RATE - r),
                    throttle, forward, lateral]
             return [_clamp(a) for a in out]
-        out = [ANGLE_P * (roll * MAX_LEAN - phi) - RATE_D * p, ANGLE_P * (pitch * MAX_LEAN - theta) - RATE_D * q,
+        self.lean = (roll * MAX_LEAN, pitch * MAX_LEAN)
+        out = [ANGLE_P * (self.lean[0] - phi) - RATE_D * p, ANGLE_P * (self.lean[1] - theta) - RATE_D * q,
                0.0, throttle, forward, lateral]
         if abs(yaw) > DEAD_ZONE or self.heading is None:
             self.heading = float(psi)
@@ -79,6 +82,14 @@ class Holds:
         elif mode == POSHOLD:
             self.position = None
         return [_clamp(a) for a in out]
+
+    def targets(self) -> tuple[float, float, float, float]:
+        """(roll, pitch, yaw rad, depth m) held now, NaN for each not held: what ArduSub logs as ATT's DesRoll,
+        DesPitch, DesYaw and CTUN's DAlt (`Sub::Log_Write_Attitude`, `Sub::Log_Write_Control_Tuning`)."""
+        nan = math.nan
+        roll, pitch = self.lean if self.lean is not None else (nan, nan)
+        return (roll, pitch, nan if self.lean is None or self.heading is None else self.heading,
+                nan if self.depth is None else self.depth)
 
     def _depth(self, throttle: float, eta: np.ndarray, nu: np.ndarray, dt: float, climb: float | None = None,
                min_depth: float | None = None) -> float:

@@ -74,6 +74,7 @@ class Snapshot:
     depth_healthy: bool = True
     bar30_depth: float | None = None     # m, what the depth sensor reads (None: the estimate's depth)
     truth: tuple[np.ndarray, np.ndarray] | None = None   # the plant's (eta, nu), for SIM_STATE
+    targets: tuple[float, float, float, float] = (math.nan,) * 4   # held roll, pitch, yaw (rad), depth (m); NaN: none
 
     @property
     def ms(self) -> int:

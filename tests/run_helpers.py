@@ -11,9 +11,11 @@ from pathlib import Path
 
 from test_bridge_gcs import ROV_MAV, WAIT, BridgeProcess, Gcs, free_port  # noqa: F401 -- re-exported
 
-RUN_WAIT = 180.0        # wall s for a whole run (the square at --speedup 10 takes ~30 s)
+RUN_WAIT = 180.0        # wall s for a whole run (the square at --speedup 5 takes ~20 s)
 CHECKER_SYSID = 200
-SPEEDUP = 10.0
+SPEEDUP = 5.0           # a run's loop at 50 Hz of vehicle time is 50 x SPEEDUP ticks a wall second, ~2 ms of CPU each:
+                        # at 10x that is a core, and beside the bridge, a router and a station on 2 cores the runner
+                        # was starved (31.8 Hz of 50) until the vehicle tipped past max_tilt; at 5x half a core
 
 
 def short_mission(directory: Path, goto_x: float = 4.0, hold: float = 5.0, depth: float = 1.0,

@@ -102,7 +102,9 @@ def test_a_runs_log_folder_gives_the_runs_own_metrics(own_run, tmp_path):
     assert m["reference"]["mission_start_from"] == "announced by the rov-mav run on the link"
     events = {e["event"]: e["t"] for e in m["modes"]}
     assert events["armed (MANUAL)"] < 0.0 < m["duration_s"] <= events["disarmed (MANUAL)"]
-    assert m["commands"][0]["sysid"] == 255 and m["commands"][0]["count"] >= m["loop"]["ticks"]
+    # one override a tick, each sent just after its tick's state: the last tick's lands after the ticks' window
+    assert m["commands"][0]["sysid"] == 255 and m["commands"][0]["count"] >= m["loop"]["ticks"] - 1, (
+        m["commands"], m["loop"])
     assert m["telemetry"]["rate_hz"] == pytest.approx(50.0, rel=0.05)      # what the runner asked for
     assert m["battery"]["consumed_mah"] > 0 and m["battery"]["min_v"] <= m["battery"]["start_v"]
     assert m["saturation"]["outputs"]["samples"] > 0
@@ -111,6 +113,14 @@ def test_a_runs_log_folder_gives_the_runs_own_metrics(own_run, tmp_path):
     t, _ = read_column(out / "dive.rrd", "pose/x", "Scalars:scalars")
     assert t.size == m["loop"]["ticks"]                                 # one row per tick, as a live recording
     assert "tracking: position RMS" in r.stdout and "battery:" in r.stdout and "modes:" in r.stdout
+    # The run's figures under the names ArduSub's are measured by: depth and horizontal errors split the position
+    # error (their mean squares add up to its), and the three angles' to the attitude error's
+    peer = m["rov_mav_tracking"]["errors"]
+    assert peer["depth_m"]["rms"] ** 2 + peer["horizontal_m"]["rms"] ** 2 == pytest.approx(
+        m["rms_position_error_m"] ** 2, rel=1e-6)
+    assert sum(math.radians(peer[f"{a}_deg"]["rms"]) ** 2 for a in ("roll", "pitch", "yaw")) == pytest.approx(
+        m["rms_attitude_error_rad"] ** 2, rel=1e-6)
+    assert "rov-mav's control" in r.stdout
 
 
 def test_a_runs_telemetry_log_alone_against_its_mission(own_run):

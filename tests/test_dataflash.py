@@ -6,11 +6,14 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 import pytest
 from pymavlink import DFReader
 from test_bridge_gcs import BridgeThread, Gcs
 from test_bridge_protocol import SPEEDUP
 
+from rov_mav.review.dataflash_records import read_records
+from rov_mav.review.dive_review import review_dive
 from sim_bridge.dataflash import FORMATS, record
 
 QUIET = {"FS_PILOT_INPUT": 0, "FS_GCS_ENABLE": 0}
@@ -179,3 +182,38 @@ def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_
             gcs.close()
     err = capsys.readouterr().err
     assert err.count("the on-board log stopped") == 1 and log.failed and log.file is None
+
+
+def test_the_targets_logged_are_those_the_vehicle_holds_and_the_review_measures_them(tmp_path):
+    # MANUAL holds nothing: ATT's Des* and CTUN's DAlt are NaN. ALT_HOLD holds the depth it had on entry and a level
+    # attitude with the sticks centred, as ArduSub's controllers log their targets.
+    with BridgeThread(SPEEDUP, start_depth=2.0, params=QUIET, log_dir=str(tmp_path)) as b:
+        gcs = Gcs(b.port, SPEEDUP)
+        try:
+            gcs.connect()
+            _arm(gcs, True)
+            time.sleep(0.3)
+            assert gcs.command(176, 1, 2).result == 0                            # DO_SET_MODE ALT_HOLD
+            gcs.recv("HEARTBEAT", cond=lambda m: m.get_srcSystem() == 1 and m.custom_mode == 2)
+            time.sleep(1.0)
+            _arm(gcs, False)
+        finally:
+            gcs.close()
+    path = tmp_path / "00000001.BIN"
+    records = read_records(path, ["ATT", "CTUN", "MODE"])
+    switch = records["MODE"]["TimeUS"][records["MODE"]["Mode"] == 2][0]
+    ctun, att = records["CTUN"], records["ATT"]
+    manual = ctun["TimeUS"] < switch
+    assert manual.any() and np.isnan(ctun["DAlt"][manual]).all()
+    assert np.isnan(att["DesRoll"][att["TimeUS"] < switch]).all()
+    held = (ctun["TimeUS"] > switch) & np.isfinite(ctun["DAlt"])
+    assert held.sum() >= 5 and np.ptp(ctun["DAlt"][held]) < 1e-6                 # one depth target, held
+    assert ctun["DAlt"][held][0] == pytest.approx(ctun["Alt"][ctun["TimeUS"] <= switch][-1], abs=0.05)
+    level = att["DesRoll"][(att["TimeUS"] > switch) & np.isfinite(att["DesRoll"])]
+    assert level.size >= 5 and np.allclose(level, 0.0)                            # sticks centred: level
+    stretches = review_dive(path).metrics["ardusub_tracking"]
+    assert [s["mode"] for s in stretches] == ["ALT_HOLD"]
+    errors = stretches[0]["errors"]
+    assert set(errors) == {"depth_m", "roll_deg", "pitch_deg", "yaw_deg"}
+    depth = ctun["DAlt"][held] - ctun["Alt"][held]
+    assert errors["depth_m"]["max"] == pytest.approx(np.abs(depth).max(), rel=1e-6) and errors["depth_m"]["max"] < 0.1

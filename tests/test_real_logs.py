@@ -167,3 +167,49 @@ def test_the_firmware_and_the_frame_are_named(reviews, name):
     vehicle = reviews[name]["vehicle"]
     assert vehicle["firmware"] is not None and vehicle["firmware"].startswith(version), vehicle
     assert vehicle["frame"].startswith(f"FRAME_CONFIG {config} ("), vehicle
+
+
+def test_arduSubs_own_control_measured_alike_from_the_on_board_targets_and_the_telemetry(reviews):
+    """The same dive's ALT_HOLD and STABILIZE, measured on board (CTUN DAlt - Alt, ATT's targets, 10 Hz) and on the
+    topside (NAV_CONTROLLER_OUTPUT's alt_error and attitude targets against ATTITUDE): the same stretches within 0.5 s,
+    depth RMS within 1 cm, roll and pitch RMS within 0.5 deg (the two logs sample at different instants)."""
+    dataflash = reviews["mohai-2023-10-18-00000016.BIN"]["ardusub_tracking"]
+    telemetry = reviews["mohai-2023-10-18-10-44-55.tlog"]["ardusub_tracking"]
+    assert [s["mode"] for s in dataflash] == [s["mode"] for s in telemetry] == ["STABILIZE", "ALT_HOLD", "ALT_HOLD"]
+    for onboard, topside in zip(dataflash, telemetry):
+        assert (onboard["from_s"], onboard["to_s"]) == pytest.approx((topside["from_s"], topside["to_s"]), abs=0.5)
+        assert set(onboard["errors"]) == set(topside["errors"])
+        for name, tolerance in (("depth_m", 0.01), ("roll_deg", 0.5), ("pitch_deg", 0.5)):
+            if name in onboard["errors"]:
+                assert onboard["errors"][name]["rms"] == pytest.approx(topside["errors"][name]["rms"],
+                                                                       abs=tolerance), (onboard, topside)
+
+
+def test_arduSubs_depth_hold_figures_are_dfreaders_ctun_in_its_armed_alt_hold(reviews):
+    """ALT_HOLD's depth error of 00000016.BIN as DFReader alone reads it: CTUN's DAlt - Alt from each MODE 2 record
+    to the next MODE record or the disarm."""
+    reader = DFReader.DFReader_binary(str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN"))
+    errors, mode, armed = [], None, True                  # the log starts armed (no ARM-on record)
+    stretches: list[list[float]] = []
+    while (r := reader.recv_match(type=["MODE", "ARM", "CTUN"])) is not None:
+        if r.get_type() == "MODE":
+            mode = r.Mode
+            if mode == 2 and armed:
+                stretches.append([])
+        elif r.get_type() == "ARM":
+            armed = bool(r.ArmState)
+        elif mode == 2 and armed and stretches:
+            stretches[-1].append(r.DAlt - r.Alt)
+    figures = [s["errors"]["depth_m"] for s in reviews["mohai-2023-10-18-00000016.BIN"]["ardusub_tracking"]
+               if s["mode"] == "ALT_HOLD"]
+    assert len(figures) == len(stretches) == 2
+    for figure, stretch in zip(figures, stretches):
+        assert figure["samples"] == pytest.approx(len(stretch), abs=1)
+        assert figure["max"] == pytest.approx(max(abs(e) for e in stretch), abs=1e-6)
+
+
+def test_surftrak_flown_by_a_pilot_is_measured(reviews):
+    stretches = reviews["mohai-2023-10-18-09-55-06-surftrak.tlog"]["ardusub_tracking"]
+    surftrak = [s for s in stretches if s["mode"] == "SURFTRAK"]
+    assert surftrak and all("depth_m" in s["errors"] for s in surftrak)
+    assert not [s for s in stretches if s["mode"] == "MANUAL"]          # MANUAL holds no target

@@ -24,6 +24,7 @@ from rov_mav.commands.common import (
     load_mission,
     rerun_recording,
 )
+from rov_mav.review import controller_tracking
 
 DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, and mavlink.tlog or the vehicle's own .BIN
@@ -39,7 +40,9 @@ on the link by rov-mav runs; else --mission-start, else the first arming), or th
 the log (MISSION_ITEM_INT traffic) as waypoints, by cross-track error; with none, what needs no reference is still
 reported. Writes what `simulate` writes (metrics JSON, PNG figures, a Rerun recording with the same layout) and
 prints a one-screen summary: tracking, loop timing, telemetry gaps and watchdog events, thruster saturation
-(outputs at their PWM limits), battery, modes and arming.
+(outputs at their PWM limits), battery, modes and arming, and ArduSub's own controllers against the targets they
+logged, per armed stretch of a mode (a .BIN's CTUN, PSCN/PSCE and ATT; a .tlog's NAV_CONTROLLER_OUTPUT): depth,
+height above the bottom, horizontal position, roll, pitch and heading, as a run's own figures are given.
 
 A truncated or damaged log is read as far as it goes: the summary says where (byte offset, last good time).
 """
@@ -170,6 +173,10 @@ def summary(label: str, m: dict) -> list[str]:
         shown = "; ".join(f"{e['t']:.1f} s {e['event']}" for e in modes[:MODES_SHOWN])
         more = f"; ... and {len(modes) - MODES_SHOWN} more" if len(modes) > MODES_SHOWN else ""
         lines.append(f"  modes: {shown}{more}")
+    if m.get("rov_mav_tracking"):
+        lines.append("  rov-mav's control, " + controller_tracking.describe(m["rov_mav_tracking"]))
+    for entry in m.get("ardusub_tracking", []):
+        lines.append("  ArduSub's own control, " + controller_tracking.describe(entry))
     if m.get("statustext", {}).get("count"):
         lines.append(f"  vehicle texts: {m['statustext']['count']} STATUSTEXT ({m['statustext']['warnings']} "
                      "warnings or worse)")

@@ -17,19 +17,13 @@ and the report says where the file stopped.
 from __future__ import annotations
 
 import math
-import os
 import re
-import sys
-import tempfile
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
-from pymavlink import DFReader
-
-from rov_mav.config import ConfigError
 from rov_mav.flight.link import mavlink
-from rov_mav.review.tlog import ReadReport, regular_file
+from rov_mav.review.dataflash_records import open_dataflash, reader_noise
+from rov_mav.review.tlog import ReadReport
 
 VEHICLE = (1, 1)
 GCS = (255, 190)
@@ -37,7 +31,6 @@ _SOURCE = re.compile(r"^SRC=(\d+)/(\d+):")
 EV_ARMED, EV_DISARMED = 10, 11          # LogEvent ids (AP_Logger/LogStructure.h)
 MAV_MODE_ARMED_MANUAL = 81              # custom | stabilize | manual input, as ArduSub's HEARTBEAT base_mode
 _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
-_SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
 BAR30_INSTANCE = 1                      # ArduSub's second barometer: the Bar30 (SCALED_PRESSURE2 on the link)
 DOWN = 25                               # MAV_SENSOR_ROTATION_PITCH_270: a rangefinder looking down
 RANGEFINDER_GOOD = 4                    # RFND.Stat (`RangeFinder::Status`): 0 not connected, 1 no data, 2 out of range
@@ -45,45 +38,18 @@ RANGEFINDER_GOOD = 4                    # RFND.Stat (`RangeFinder::Status`): 0 n
 STRETCH = 20000                         # records decoded at a time (a 100 MB log is millions)
 
 
-@contextmanager
-def _reader_noise(report: ReadReport):
-    """DFReader (its C indexer too) tells of damage on stderr: kept from the user's terminal, read for the report's
-    damaged stretches."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as noise:
-        os.dup2(noise.fileno(), 2)
-        try:
-            yield
-        finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
-            os.close(saved)
-            noise.seek(0)
-            for size, offset in _SKIPPED.findall(noise.read().decode(errors="replace")):
-                report.damaged.append((int(offset), int(offset) + int(size)))
-
-
 def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterator[tuple[float, object]]:
     """(log time s, MAVLink message) for the records of a .BIN, in order; `report` filled in as it goes."""
-    path = regular_file(path)
     report = report if report is not None else ReadReport(str(path), 0)
-    report.size, report.dataflash = path.stat().st_size, True
-    if report.size == 0:
-        raise ConfigError(f"{path}: empty: not a dataflash log")
-    with _reader_noise(report):
-        try:
-            reader = DFReader.DFReader_binary(str(path), zero_time_base=True)
-        except Exception as exc:     # noqa: BLE001 - pymavlink raises anything on a file it cannot index
-            raise ConfigError(f"{path}: cannot read as a dataflash log: {exc}") from None
+    reader = open_dataflash(path, report)
     encoders = {}
-    with _reader_noise(report):
+    with reader_noise(report):
         armed = _armed_at_start(reader)
     replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)), armed)
     try:
         done = False
         while not done:
-            with _reader_noise(report):          # a stretch at a time: a large log is never held whole
+            with reader_noise(report):          # a stretch at a time: a large log is never held whole
                 records, done = _read(reader, STRETCH, report)
             for record in records:
                 report.messages += 1

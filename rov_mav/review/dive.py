@@ -73,6 +73,9 @@ class Dive:
                                                                             # altitude (m, up; negative underwater)
     range_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (R,) the rangefinder's log times ...
     range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (R,) ... its distance (m)
+    nav_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))       # (C,) NAV_CONTROLLER_OUTPUT's log times
+    nav: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))       # (C, 4) ... nav_roll, nav_pitch,
+                                                                            # nav_bearing (deg), alt_error (m)
 
 
 class DiveRecorder:
@@ -84,6 +87,7 @@ class DiveRecorder:
         self._pressure = History(wall=1, abs=1)
         self._altitude = History(wall=1, m=1)
         self._range = History(wall=1, m=1)
+        self._nav = History(wall=1, targets=4)
         self.vehicle: tuple[int, int] | None = None
         self.vehicle_type: int | None = None
         self._held: list[tuple[float, object]] = []
@@ -145,7 +149,8 @@ class DiveRecorder:
             attitude_wall=self._attitude.column("wall"), attitude=self._attitude.column("rpy"),
             pressure_wall=self._pressure.column("wall"), pressure_abs=self._pressure.column("abs"),
             altitude_wall=self._altitude.column("wall"), altitude=self._altitude.column("m"),
-            range_wall=self._range.column("wall"), range_m=self._range.column("m"))
+            range_wall=self._range.column("wall"), range_m=self._range.column("m"),
+            nav_wall=self._nav.column("wall"), nav=self._nav.column("targets"))
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
 
@@ -199,6 +204,8 @@ class DiveRecorder:
             self._rangefinder(wall, msg)
         elif kind == "RANGEFINDER":
             self._range.append(wall=wall, m=msg.distance)
+        elif kind == "NAV_CONTROLLER_OUTPUT":              # ArduSub's attitude targets and altitude error
+            self._nav.append(wall=wall, targets=[msg.nav_roll, msg.nav_pitch, msg.nav_bearing, msg.alt_error])
         elif kind == "SERVO_OUTPUT_RAW":
             self._servo.append(t=msg.time_usec / 1e6,
                                pwm=[getattr(msg, f"servo{i}_raw") for i in range(1, CHANNELS + 1)])

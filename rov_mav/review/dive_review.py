@@ -22,8 +22,9 @@ from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, REPORTED, THRUSTS,
 from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, truth_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
-from rov_mav.review import analysis
+from rov_mav.review import analysis, controller_tracking
 from rov_mav.review.dataflash_log import read_dataflash
+from rov_mav.review.dataflash_records import read_records
 from rov_mav.review.dive import Dive, DiveRecorder
 from rov_mav.review.logdir import RunFolder, column_block, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
@@ -31,6 +32,7 @@ from rov_mav.review.tlog import ReadReport, read_tlog
 from rov_mav.telemetry.entities import TickColumns
 
 AUTO = 3                         # ArduSub's custom_mode of AUTO
+TRACKED_RECORDS = ("CTUN", "PSCN", "PSCE", "ATT")   # a DataFlash log's targets and actuals (`controller_tracking`)
 MATCH_TICKS = 50                 # ticks matched against the log's states to find their vehicle time
 LISTED_GAPS = 20                 # telemetry gaps put in the events one by one
 TRUTH_WALL = 0.1                 # log s: a SIM_STATE recorded this near a state is its truth
@@ -171,8 +173,25 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
                                                                        stream[main][1][in_window])}
     kind = "DataFlash log" if report.dataflash else "telemetry log"
     _dive_figures(review, dive, t0, window, commands, source=kind)
+    metrics["ardusub_tracking"] = _ardusub_tracking(path, report, dive, t0)
     metrics["source"] = _source(path, kind, report)
     return review
+
+
+def _ardusub_tracking(path: Path, report: ReadReport, dive: Dive, t0: float) -> list[dict]:
+    """ArduSub's own controllers against the targets it logged, per armed stretch of a mode (`controller_tracking`);
+    times in review seconds."""
+    if report.dataflash:
+        errors = controller_tracking.dataflash_errors(read_records(path, TRACKED_RECORDS))
+    else:
+        errors = controller_tracking.telemetry_errors(dive.nav_wall, dive.nav, dive.attitude_wall, dive.attitude)
+    end = report.last_wall if report.last_wall is not None else float(dive.heartbeat_wall[-1:].sum())
+    stretches = controller_tracking.armed_stretches(dive.heartbeat_wall, dive.armed, dive.mode, end)
+    out = controller_tracking.figures(stretches, errors)
+    for entry in out:
+        entry["from_s"], entry["to_s"] = (float(v) - t0 for v in
+                                          analysis.vehicle_time(dive, [entry["from_s"], entry["to_s"]]))
+    return out
 
 
 def _passthrough(dive: Dive) -> bool:
@@ -297,6 +316,11 @@ def _review_folder(path: Path, folder: RunFolder, mission: Mission | None, start
                                  {name: value[flown] for name, value in internals.items()},
                                  completed=any(text == "stopping: mission complete" for _, _, text in folder.events),
                                  true_disturbance=truth))
+        if flown.any():
+            errors = controller_tracking.run_errors(t[flown], eta[flown], reference[flown, :6])
+            label = f"rov-mav ({info.get('controller') or 'controller not logged'})"
+            metrics["rov_mav_tracking"] = controller_tracking.stretch_figures(label, float(t[flown][0]),
+                                                                              float(t[flown][-1]) + 1e-9, errors)
         reported = column_block(ticks, REPORTED)[flown] if REPORTED[0] in ticks else None   # older logs lack it
         metrics.update(truth_metrics(column_block(ticks, TRUTH)[flown], reference[flown, :6], eta[flown, :3],
                                      reported))
