@@ -37,6 +37,7 @@ from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import Allocator, thruster_curve
 from rov_mav.model.vehicle import Vehicle, load_vehicle, save_vehicle
 from rov_mav.offline.identification import falling_zero, identify
+from rov_mav.offline.prediction_check import compare, impossible, split
 from sim_bridge.battery import Battery
 from sim_bridge.physics import Physics
 
@@ -533,3 +534,37 @@ def test_bad_excite_segments_are_refused(segment, problem, tmp_path):
     path.write_text(f"name: bad\nstart: {{position: [0, 0, 1]}}\npath:\n  - {segment}\n")
     with pytest.raises(ConfigError, match=re.escape(problem)):
         load_mission(path)
+
+
+# -- the check before writing ------------------------------------------------------------------------------------
+
+
+def test_the_true_plant_predicts_its_own_flight_a_second_ahead_and_a_wrong_model_does_not(clean_log):
+    # The predictor integrates the model from each logged state with the thrust the vehicle was sent: on a
+    # noise-free log the plant that flew it predicts 1 s ahead to within what the thrusters' 20 ms lag (not
+    # modelled by the check) leaves; a model with twice the heave damping and half the yaw added mass does not.
+    _, held = split(load_run(str(clean_log)))
+    true = {c.quantity: c for c in compare(PLANT, PLANT, [held], 0.0)}
+    assert true["depth_m"].fitted < 0.003 and true["heading_deg"].fitted < 0.3, true
+    wrong = replace(PLANT, quadratic_damping=PLANT.quadratic_damping * np.array([1, 1, 2, 1, 1, 1]),
+                    added_mass=PLANT.added_mass * np.array([1, 1, 1, 1, 1, 0.5]))
+    versus = {c.quantity: c for c in compare(wrong, PLANT, [held], 0.0)}
+    assert versus["depth_m"].worse and versus["heading_deg"].worse, versus
+    assert not any(c.worse for c in compare(PLANT, wrong, [held], 0.0))
+
+
+def test_a_vehicle_no_rov_can_be_is_named():
+    assert impossible(PLANT) is None
+    sinker = replace(PLANT, volume=PLANT.volume * 0.4)
+    assert "sink like a stone" in impossible(sinker)
+    assert "negative" in impossible(replace(PLANT, linear_damping=PLANT.linear_damping - 100.0))
+
+
+def test_a_fit_that_is_impossible_is_not_written(clean_log, tmp_path, capsys):
+    # 500 N of net buoyancy (a user's grams read as newtons): the fit takes it as given, and refuses to write a
+    # vehicle that would float up at 500 N
+    out = tmp_path / "identified.yaml"
+    code, stdout, stderr = identify_cli(capsys, clean_log, "--net-buoyancy", "500", "--out", out)
+    assert code == 1 and not out.exists()
+    assert stderr.count("\n") == 1 and "impossible" in stderr and "shoot up" in stderr, stderr
+    assert "held-back check" in stdout

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from pymavlink import DFReader, mavutil
 
+from rov_mav import cli
 from rov_mav.review.dive_review import review_dive
 
 FOLDER = os.environ.get("ROVMAV_REAL_LOGS")
@@ -213,3 +214,13 @@ def test_surftrak_flown_by_a_pilot_is_measured(reviews):
     surftrak = [s for s in stretches if s["mode"] == "SURFTRAK"]
     assert surftrak and all("depth_m" in s["errors"] for s in surftrak)
     assert not [s for s in stretches if s["mode"] == "MANUAL"]          # MANUAL holds no target
+
+
+def test_identify_on_a_standard_frames_dive_refuses_the_heavy_prior_in_one_line(tmp_path, capsys):
+    """mohai-2023-10-18-00000016.BIN is a standard BlueROV2's (FRAME_CONFIG 1, six thrusters): its RCOU outputs are
+    not the Heavy's eight thrusters, so the shipped Heavy cannot be the prior; nothing is written."""
+    out = tmp_path / "identified.yaml"
+    code = cli.main(["identify", str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert err.count("\n") == 1 and "FRAME_CONFIG 1 (VECTORED, 6 motors)" in err and "FRAME_CONFIG 2" in err, err

@@ -27,6 +27,12 @@ its force the model explains (R^2) and the residual left (RMS).
 One number cannot come from motion: scaling every force of the model and the thrust together changes nothing the
 vehicle does. The thrusters' bench data set that level unless --net-buoyancy gives the vehicle's weight in water
 (weigh it hanging from a spring scale, fully submerged): then the thrust scale is fitted too.
+
+Before anything is written, the model is checked: fitted again on the first two thirds of each log, it predicts
+the last third one second ahead (depth, heading, roll, pitch: integrated from each logged state with the thrust the
+vehicle was sent) beside the prior. A fit that predicts depth or heading worse than the prior, or a vehicle no ROV
+can be (a mass matrix not positive definite, negative damping, buoyancy more than 25 % from the weight), is not
+written: one line says why. A DataFlash log's frame (FRAME_CONFIG, or ArduSub's "Frame:" text) must be the prior's.
 """
 
 EPILOG = """\
@@ -36,7 +42,8 @@ examples:
   rov-mav identify out/identify out/identify2 --net-buoyancy 2.5 --out my_rov.yaml
   rov-mav run --target tcp:127.0.0.1:5760 square --vehicle my_rov.yaml
 
-exit status: 0 written; 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
+exit status: 0 written; 1 a model was fitted but not written (it predicts worse than the prior, or is impossible);
+2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
 """
 
 MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's thrusters could hold down or up
@@ -65,7 +72,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=main)
 
 
-def load_dataflash_run(path: str, mission, start: float | None):
+def load_dataflash_run(path: str, mission, start: float | None, prior=None):
     """A run as the vehicle's own DataFlash log holds it (`review.dataflash_log`: its EKF state, attitude and rates,
     RCOU's PWMs and BAT's voltage at 10 Hz), tracking `mission` from its start: an identification `Run` over the
     mission's span, each tick's PWM the outputs at the middle of its interval. The thrust's sign is the PWM's (no
@@ -75,9 +82,11 @@ def load_dataflash_run(path: str, mission, start: float | None):
     from rov_mav.review.dive_review import read_dive
     from rov_mav.review.reference import mission_start
 
+    _, dive = read_dive(Path(path))
+    if prior is not None:
+        _same_frame(path, dive, prior)
     if mission is None:
         raise ConfigError(f"{path}: a .BIN needs --mission (the mission the run flew): the log holds no reference")
-    _, dive = read_dive(Path(path))
     t0, _ = mission_start(dive, start)
     if t0 is None or dive.servo_t.size == 0:
         raise ConfigError(f"{path}: no state or no RCOU in the log")
@@ -93,6 +102,24 @@ def load_dataflash_run(path: str, mission, start: float | None):
     voltage = np.interp(boot_wall, dive.power_wall, dive.voltage) if dive.power_wall.size else np.full(t.size, 16.0)
     return Run(path, t, dive.eta[flown], dive.nu[flown], pwm, np.sign(pwm - 1500.0), voltage,
                mission.reference(t - t0), np.zeros(t.size))
+
+
+def _same_frame(path: str, dive, prior) -> None:
+    """ConfigError (one line) when the log's vehicle is on another frame than the prior (its motors would be read as
+    the wrong thrusters): FRAME_CONFIG, else the banner's "Frame:" text (`GCS_MAVLINK_Sub::send_banner`)."""
+    from rov_mav.config import ConfigError
+    from rov_mav.model.frames import MAX_MOTORS, frame_of, frames_by_string
+
+    if "FRAME_CONFIG" in dive.params:
+        frames = [frame_of(int(dive.params["FRAME_CONFIG"]))]
+    else:
+        banner = next((text for _, sysid, _, text in dive.texts if text.startswith("Frame:")), None)
+        frames = frames_by_string(banner.removeprefix("Frame:").strip()) if banner else []
+    if frames and prior.frame not in frames:
+        remedy = "give --vehicle a model of this frame" if frames[0].motors == MAX_MOTORS else \
+            f"rov-mav's vehicle model has {MAX_MOTORS} thrusters, so this frame cannot be identified yet"
+        raise ConfigError(f"{path}: the logged vehicle is {frames[0].describe()}; the prior {prior.name} is "
+                          f"{prior.frame.describe()}: its motors would be read as other thrusters ({remedy})")
 
 
 def load_run(directory: str):
@@ -146,6 +173,43 @@ def _report(result, logs: list[str], out: str, window: float) -> str:
     return "\n".join(lines)
 
 
+def _checked(runs, prior, net_buoyancy, window):
+    """The held-back check (`prediction_check`): a fit on the first two thirds of each run, its predictions on the
+    last third beside the prior's; IdentificationError (one line) when the first part alone cannot be fitted."""
+    from rov_mav.offline.identification import MIN_DURATION, IdentificationError, identify
+    from rov_mav.offline.prediction_check import HELD_BACK, compare, split
+
+    parts = [split(run) for run in runs]
+    try:
+        first = identify([fit for fit, _ in parts], prior, net_buoyancy, window)
+    except IdentificationError as exc:
+        need = MIN_DURATION / (1.0 - HELD_BACK)
+        raise IdentificationError(f"the check on held-back data cannot fit the first two thirds of the logs ({exc}): "
+                                  f"give at least {need:.0f} s of flight") from None
+    return compare(first.vehicle, prior, [held for _, held in parts], first.delay)
+
+
+def _refusal(result, comparisons) -> str | None:
+    """Why the fitted vehicle must not be written, in one line, or None."""
+    from rov_mav.offline.prediction_check import DECIDING, impossible
+
+    if why := impossible(result.vehicle):
+        return f"the fitted vehicle is impossible: {why}; nothing written"
+    worse = [c for c in comparisons if c.quantity in DECIDING and c.worse]
+    if worse:
+        return ("the fit predicts worse than the prior on the held-back third of the logs (1 s ahead: "
+                + ", ".join(f"{c.quantity} RMS {c.fitted:.3g} against {c.prior:.3g}" for c in worse)
+                + "): it would fly worse than the vehicle file you have; nothing written")
+    return None
+
+
+def _check_lines(comparisons) -> list[str]:
+    lines = ["held-back check (fitted on the first two thirds of each log; RMS error 1 s ahead on the last third):"]
+    lines += [f"  {c.quantity:<12} fitted {c.fitted:8.3g}  prior {c.prior:8.3g}  ({c.predictions} predictions)"
+              for c in comparisons]
+    return lines
+
+
 def main(args: argparse.Namespace) -> int:
     from rov_mav.config import ConfigError
     from rov_mav.model.vehicle import load_vehicle, save_vehicle
@@ -155,16 +219,22 @@ def main(args: argparse.Namespace) -> int:
     window = args.window or WINDOW
     try:
         mission = load_mission(args) if args.mission else None
-        runs = [load_dataflash_run(d, mission, args.mission_start) if d.lower().endswith(".bin") else load_run(d)
-                for d in args.logs]
+        runs = [load_dataflash_run(d, mission, args.mission_start, prior) if d.lower().endswith(".bin")
+                else load_run(d) for d in args.logs]
         result = identify(runs, prior, args.net_buoyancy, window)
+        comparisons = _checked(runs, prior, args.net_buoyancy, window)
     except (ConfigError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)
         return 2
+    if refusal := _refusal(result, comparisons):
+        print("\n".join(_check_lines(comparisons)), flush=True)
+        print(f"rov-mav identify: refused: {refusal}", file=sys.stderr)
+        return 1
     fitted = sum(e.status == "fitted" for e in result.estimates)
     header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
               f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
               + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
     save_vehicle(replace(result.vehicle, name=f"{prior.name}, identified"), args.out, header)
     print(_report(result, args.logs, args.out, window), flush=True)
+    print("\n".join(_check_lines(comparisons)), flush=True)
     return 0
