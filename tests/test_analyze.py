@@ -329,7 +329,7 @@ def test_a_damaged_telemetry_log_skips_the_damage_and_says_where(own_run, tmp_pa
 @pytest.mark.parametrize("content,name,expected", [
     (b"", "empty.tlog", "no MAVLink message could be read"),
     (bytes(np.random.default_rng(1).integers(0, 256, 4000, dtype=np.uint8)), "noise.tlog", "not a telemetry log"),
-    (b"\xa3\x95" * 100, "flight.bin", "no dataflash record could be read"),
+    (b"\xa3\x95" * 100, "flight.bin", "no DataFlash record in its 200 bytes"),
     (b"", "flight.BIN", "empty: not a dataflash log"),
     (b"#!garbage\n" * 10, "flight.log", "a dataflash text log"),
 ])

@@ -109,14 +109,13 @@ def test_records_pack_as_their_format_says():
         record(FORMATS["ATT"], 1, 2)
 
 
-def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path, monkeypatch):
+def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
     """ArduSub 4.0-era layouts (ATT in centidegrees with ErrRP/ErrYaw, EKF2's NKF1 without a core field, BAT
     without an instance, PARM without a default, EV for arming, RCOU's 14 channels), other type ids: the reader goes
     by each file's FMT records and the fields' labels."""
     from sim_bridge.dataflash import FMT, Format
 
-    from rov_mav.review import dataflash_log
-    from rov_mav.review.dataflash_log import read_dataflash
+    from rov_mav.review.dataflash_log import read_dataflash_dive
     from rov_mav.review.tlog import ReadReport
 
     old = {
@@ -144,23 +143,15 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path, monkeypa
     path = tmp_path / "old.BIN"
     path.write_bytes(b"".join(data) + b"\xa3\x95")            # and a cut record at the end
     report = ReadReport(str(path), 0)
-    messages = [m for _, m in read_dataflash(path, report)]
-    kinds = [m.get_type() for m in messages]
-    assert {"ATTITUDE", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "SYS_STATUS", "HEARTBEAT", "STATUSTEXT",
-            "PARAM_VALUE"} <= set(kinds)
-    attitude = next(m for m in messages if m.get_type() == "ATTITUDE")
-    assert (math.degrees(attitude.roll), math.degrees(attitude.pitch), math.degrees(attitude.yaw)) == \
-        pytest.approx((5.0, -2.0, 90.0), abs=0.01)                       # centidegrees scaled by the format letter
-    position = [m for m in messages if m.get_type() == "LOCAL_POSITION_NED"]
-    assert position[-1].x == pytest.approx(0.38) and position[-1].z == pytest.approx(2.0)
-    beats = [m for m in messages if m.get_type() == "HEARTBEAT"]
-    assert [bool(m.base_mode & 128) for m in beats] == [False, True, False]   # MODE, then EV armed, EV disarmed
-    assert next(m for m in messages if m.get_type() == "SYS_STATUS").voltage_battery == 15500
-    assert report.truncated and report.end == len(b"".join(data))
-    monkeypatch.setattr(dataflash_log, "STRETCH", 7)        # read a few records at a time: the same, in order
-    again = ReadReport(str(path), 0)
-    assert [m.get_type() for _, m in read_dataflash(path, again)] == kinds
-    assert (again.messages, again.end, again.truncated) == (report.messages, report.end, report.truncated)
+    dive = read_dataflash_dive(path, report)
+    assert np.degrees(dive.attitude[0]) == pytest.approx((5.0, -2.0, 90.0), abs=0.01)   # centidegrees, by the letter
+    assert dive.state_t.size == 20 and dive.eta[-1, 0] == pytest.approx(0.38) and dive.eta[-1, 2] == pytest.approx(2.0)
+    assert dive.servo[-1].tolist() == [1519.0] * 8
+    assert dive.armed.tolist() == [False, True, False] and dive.mode.tolist() == [19, 19, 19]   # MODE, EV 10, EV 11
+    assert dive.voltage[0] == pytest.approx(15.5) and dive.current[0] == pytest.approx(3.0)
+    assert dive.params == {"MAV_GCS_SYSID": 255.0} and dive.texts[0][3] == "ArduSub V4.0.3 (abc)"
+    assert report.truncated and report.end == len(b"".join(data)) and report.messages == len(data)
+    assert not report.damaged and report.power_off_tail                  # the cut record: a power-off's, not damage
 
 
 def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):

@@ -30,10 +30,9 @@ DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, and mavlink.tlog or the vehicle's own .BIN
 copied in its place) or any ArduSub telemetry log
 (.tlog: flown by rov-mav, by a pilot, or by ArduSub's own AUTO/GUIDED; written by rov-mav, MAVProxy or
-QGroundControl), or the vehicle's own DataFlash log (.BIN, ArduSub 4.0 to 4.7, or `sim-bridge --log-dir`'s), its
-records read as the telemetry they stand for (ATT and RATE as ATTITUDE, XKF1 or NKF1 as LOCAL_POSITION_NED, RCOU,
-BAT, MODE and ARM, MSG, PARM). The vehicle's state is decoded from ATTITUDE and LOCAL_POSITION_NED as `run` decodes
-it live.
+QGroundControl), or the vehicle's own DataFlash log (.BIN, ArduSub 4.0 to 4.7, or `sim-bridge --log-dir`'s), read
+as records by the labels of its own FMT records (ATT and RATE, XKF1 or NKF1, RCOU, BAT, BARO, CTUN, RFND, MODE and
+ARM, MSG, PARM). The vehicle's state pairs attitude and position as `run` decodes them live.
 
 Measured against: the reference the run flew (a log folder's ticks.csv), or --mission from its start (announced
 on the link by rov-mav runs; else --mission-start, else the first arming), or the vehicle's own mission found in

@@ -15,6 +15,29 @@ from rov_mav.offline.simulation import Trace  # noqa: E402
 DOF_LABELS = ("x (m)", "y (m)", "z (m)", "phi (rad)", "theta (rad)", "psi (rad)")
 ETA_NAMES = ("x", "y", "z", "phi", "theta", "psi")
 BODY_LABELS = ("u: X (N)", "v: Y (N)", "w: Z (N)", "p: K (N m)", "q: M (N m)", "r: N (N m)")
+BUCKETS = 2000                # a line of more samples is drawn as the lowest and highest of this many time buckets
+
+
+def _envelope(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, y) thinned for drawing: per bucket of consecutive samples its lowest and highest, in time order, so that
+    every spike a figure could show stays (an hour's log is hundreds of thousands of samples; a figure is 1200
+    pixels wide)."""
+    n = len(t)
+    if n <= 2 * BUCKETS:
+        return t, y
+    size = n // BUCKETS
+    whole = (n // size) * size
+    buckets = np.asarray(y[:whole], dtype=float).reshape(-1, size)
+    low = np.argmin(np.where(np.isnan(buckets), np.inf, buckets), axis=1)
+    high = np.argmax(np.where(np.isnan(buckets), -np.inf, buckets), axis=1)
+    start = np.arange(buckets.shape[0]) * size
+    index = np.concatenate([np.sort(np.column_stack([start + low, start + high]), axis=1).ravel(),
+                            np.arange(whole, n)])
+    return t[index], y[index]
+
+
+def _line(ax, t: np.ndarray, y: np.ndarray, *args, **kwargs):
+    return ax.plot(*_envelope(np.asarray(t), np.asarray(y)), *args, **kwargs)
 
 
 def _grid(title: str):
@@ -34,8 +57,8 @@ def plot_dofs(trace: Trace, title: str, path: Path) -> Path:
     """Each DOF against its reference (the counterpart of Figs. IV-2, IV-3)."""
     fig, axes = _grid(title)
     for i, ax in enumerate(axes):
-        ax.plot(trace.t, trace.reference[:, i], "k--", lw=1, label="reference")
-        ax.plot(trace.t, trace.eta[:, i], lw=1.2, label="vehicle")
+        _line(ax, trace.t, trace.reference[:, i], "k--", lw=1, label="reference")
+        _line(ax, trace.t, trace.eta[:, i], lw=1.2, label="vehicle")
         ax.set_ylabel(DOF_LABELS[i])
         ax.grid(alpha=0.3)
     axes[0].legend(loc="best")
@@ -55,7 +78,8 @@ def plot_path(traces: dict[str, Trace], title: str, path: Path, planned: np.ndar
     else:
         ax.plot(first.reference[:, 1], first.reference[:, 0], first.reference[:, 2], "k--", lw=1, label="reference")
     for name, trace in traces.items():
-        ax.plot(trace.eta[:, 1], trace.eta[:, 0], trace.eta[:, 2], lw=1.3, label=name)
+        every = max(1, len(trace.t) // (2 * BUCKETS))
+        ax.plot(trace.eta[::every, 1], trace.eta[::every, 0], trace.eta[::every, 2], lw=1.3, label=name)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.set_zlabel("depth (m)")
@@ -69,7 +93,7 @@ def plot_estimates(trace: Trace, title: str, path: Path) -> Path:
     """Disturbance estimates against the true disturbance (Figs. IV-5, IV-6, IV-8)."""
     fig, axes = _grid(title)
     for i, ax in enumerate(axes):
-        ax.plot(trace.t, trace.tau_hat[:, i], lw=1.2, label="estimate")
+        _line(ax, trace.t, trace.tau_hat[:, i], lw=1.2, label="estimate")
         if trace.true_disturbance is not None:
             ax.axhline(trace.true_disturbance[i], color="k", ls="--", lw=1, label="true")
         ax.set_ylabel(BODY_LABELS[i])
@@ -82,7 +106,7 @@ def plot_rates(trace: Trace, title: str, path: Path) -> Path:
     """Adaptation rates gamma per body DOF (fuzzy or constant)."""
     fig, axes = _grid(title)
     for i, ax in enumerate(axes):
-        ax.plot(trace.t, trace.gamma[:, i], lw=1)
+        _line(ax, trace.t, trace.gamma[:, i], lw=1)
         ax.set_ylabel(f"gamma {'uvwpqr'[i]}")
         ax.grid(alpha=0.3)
     return _save(fig, path)
@@ -107,7 +131,7 @@ def plot_thrusters(series: dict[str, tuple[np.ndarray, np.ndarray]], limits: tup
     fig.suptitle(title)
     for i, ax in enumerate(axes.T.ravel()):
         for name, (t, pwm) in series.items():
-            ax.plot(t, pwm[:, i], lw=1, label=name)
+            _line(ax, t, pwm[:, i], lw=1, label=name)
         for limit in (limits[0][i], limits[1][i]):
             ax.axhline(limit, color="r", ls=":", lw=1)
         ax.set_ylabel(f"T{i + 1} PWM (us)")
@@ -125,9 +149,10 @@ def plot_timeline(panels: list[tuple[str, dict[str, tuple[np.ndarray, np.ndarray
     fig.suptitle(title)
     for ax, (label, lines) in zip(axes[:, 0], panels):
         for name, (t, values) in lines.items():
-            ax.plot(t, values, ".-" if len(t) < 200 else "-", lw=1, ms=3, label=name)
-        for t_mark, _ in marks:
-            ax.axvline(t_mark, color="0.6", ls="--", lw=0.8)
+            _line(ax, t, values, ".-" if len(t) < 200 else "-", lw=1, ms=3, label=name)
+        if marks:                           # one collection for every mark: an hour's dive has many
+            ax.vlines([t_mark for t_mark, _ in marks], 0.0, 1.0, transform=ax.get_xaxis_transform(), color="0.6",
+                      ls="--", lw=0.8)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         if len(lines) > 1:

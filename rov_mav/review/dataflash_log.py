@@ -1,207 +1,234 @@
-"""A vehicle's own DataFlash log (.BIN: ArduSub's on-board log, or the built-in vehicle's) read as the telemetry it
-would have sent, so that `analyze` reviews it as it reviews a .tlog (`dive.DiveRecorder` takes the messages).
+"""A vehicle's own DataFlash log (.BIN: ArduSub's on-board log, or the built-in vehicle's) read as a `Dive`, column by
+column from its records (`dataflash_records`), so that `analyze` reviews it as it reviews a .tlog.
 
-pymavlink's DFReader decodes every record through the file's own FMT records (layouts differ from ArduSub 4.0 to
-4.7: ATT in centidegrees or float degrees, EKF2's NKF1 or EKF3's XKF1 with or without a core field, BAT with or
-without RemPct); fields are looked up by label. Each record becomes the message the vehicle streams for it, stamped
-with its TimeUS as both the log time and the vehicle's time_boot_ms (a DataFlash log has no wall clock without GPS):
-    ATT + RATE -> ATTITUDE, XKF1 (core 0) / NKF1 -> LOCAL_POSITION_NED, RCOU -> SERVO_OUTPUT_RAW, RCIN -> RC_CHANNELS,
-    BAT -> SYS_STATUS and BATTERY_STATUS, BARO of the Bar30 (instance 1) -> SCALED_PRESSURE2, CTUN's Alt (Sub's own
-    altitude) -> GLOBAL_POSITION_INT's relative_alt (no latitude or longitude), RFND looking down
-    with a good status -> RANGEFINDER, MODE + ARM (or EV's armed/disarmed) -> HEARTBEAT, MSG -> STATUSTEXT (a "GCS:" or
-    "SRC=sysid/compid:" text as that station's, `GCS_MAVLINK::handle_statustext`), PARM -> PARAM_VALUE.
-A damaged stretch is skipped (DFReader resynchronises on the next record header); a cut-off last record is dropped,
-and the report says where the file stopped.
+Fields by label through the file's own FMT records (layouts differ from ArduSub 4.0 to 4.7: ATT in centidegrees or
+float degrees, EKF2's NKF1 or EKF3's XKF1 with or without a core field, BAT with or without RemPct). Times are
+TimeUS, both the log time and the vehicle's (a DataFlash log has no wall clock without GPS). What each part is:
+- the state: each XKF1 (core 0; NKF1 in EKF2 logs) paired with the ATT nearest it within half ATT's period, the
+  older of the two brought forward to the newer one's time by its own rates (the NED velocity; RATE's body rates
+  through T(Theta)), as `vehicle_state.StateDecoder` pairs ATTITUDE and LOCAL_POSITION_NED live; nu = [R^T v_NED,
+  p, q, r];
+- outputs RCOU; battery BAT (or CURR) instance 0, a value out of its field's range unknown (BAT.RemPct 255 is
+  ArduPilot's "unknown"; a negative current, a sensor's offset, unknown as SYS_STATUS has it); the Bar30 BARO
+  instance 1; ArduSub's own altitude CTUN.Alt; a down-looking rangefinder's good readings (RFND.Stat 4);
+- arming and modes: MODE, ARM (EV 10/11 in older logs) in file order, from the state the log began in (ArduSub opens a
+  log at arming unless LOG_DISARMED is 1, `AP_Logger::should_log`, and the arming that opened it is not in it);
+- texts MSG ("GCS:" or "SRC=sysid/compid:" before a station's text, `GCS_MAVLINK::handle_statustext`), PARM;
+- ArduSub's own targets for `controller_tracking` (CTUN, PSCN/PSCE, ATT).
 """
 
 from __future__ import annotations
 
-import math
 import re
-from collections.abc import Iterator
 from pathlib import Path
 
-from rov_mav.flight.link import mavlink
-from rov_mav.review.dataflash_records import open_dataflash, reader_noise
+import numpy as np
+
+from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.model.dynamics import euler_rate_matrix, rotation
+from rov_mav.review import controller_tracking
+from rov_mav.review.dataflash_records import Records, index_dataflash
+from rov_mav.review.dive import Dive
 from rov_mav.review.tlog import ReadReport
 
 VEHICLE = (1, 1)
-GCS = (255, 190)
+GCS_SYSID = 255
 _SOURCE = re.compile(r"^SRC=(\d+)/(\d+):")
 EV_ARMED, EV_DISARMED = 10, 11          # LogEvent ids (AP_Logger/LogStructure.h)
-MAV_MODE_ARMED_MANUAL = 81              # custom | stabilize | manual input, as ArduSub's HEARTBEAT base_mode
-_RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 BAR30_INSTANCE = 1                      # ArduSub's second barometer: the Bar30 (SCALED_PRESSURE2 on the link)
 DOWN = 25                               # MAV_SENSOR_ROTATION_PITCH_270: a rangefinder looking down
 RANGEFINDER_GOOD = 4                    # RFND.Stat (`RangeFinder::Status`): 0 not connected, 1 no data, 2 out of range
                                         # low, 3 high, 4 good: only a good reading is a distance
-STRETCH = 20000                         # records decoded at a time (a 100 MB log is millions)
+TYPES = ("ATT", "RATE", "XKF1", "NKF1", "RCOU", "BAT", "CURR", "BARO", "CTUN", "RFND", "MODE", "ARM", "EV", "MSG",
+         "PARM", "PSCN", "PSCE")
+_RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 
 
-def read_dataflash(path: str | Path, report: ReadReport | None = None) -> Iterator[tuple[float, object]]:
-    """(log time s, MAVLink message) for the records of a .BIN, in order; `report` filled in as it goes."""
-    report = report if report is not None else ReadReport(str(path), 0)
-    reader = open_dataflash(path, report)
-    encoders = {}
-    with reader_noise(report):
-        armed = _armed_at_start(reader)
-    replay = _Replay(lambda source: encoders.setdefault(source, mavlink.MAVLink(None, *source)), armed)
-    try:
-        done = False
-        while not done:
-            with reader_noise(report):          # a stretch at a time: a large log is never held whole
-                records, done = _read(reader, STRETCH, report)
-            for record in records:
-                report.messages += 1
-                for t, msg in replay.take(record):
-                    report.last_wall = t
-                    yield t, msg
-    finally:
-        reader.filehandle.close()
+def read_dataflash_dive(path: str | Path, report: ReadReport) -> Dive:
+    """The Dive a .BIN holds; `report` says what was read (records, damaged stretches, where it stopped)."""
+    index = index_dataflash(path, report)
+    r = dict(index.records(TYPES))
+    timed = [records for records in r.values() if len(records) and "TimeUS" in records]
+    if timed:
+        last = max(timed, key=lambda records: records.offsets[-1])        # the latest record in the file
+        report.last_wall = float(last["TimeUS"][-1]) * 1e-6
+    state_t, state_wall, eta, nu = _states(r)
+    attitude = r.get("ATT")
+    att_t = attitude["TimeUS"] * 1e-6 if attitude is not None else np.zeros(0)
+    params, param_changes = _parameters(r.get("PARM"))
+    texts, others = _texts(r.get("MSG"))
+    heartbeat_wall, armed, mode = _arming_and_modes(r, params)
+    servo_t, servo = _outputs(r.get("RCOU"))
+    power_wall, voltage, current, consumed = _battery(r)
+    pressure_wall, pressure = _bar30(r.get("BARO"))
+    altitude_wall, altitude = _altitude(r.get("CTUN"))
+    range_wall, range_m = _rangefinder(r.get("RFND"))
+    return Dive(
+        vehicle=VEHICLE if (state_t.size or att_t.size or heartbeat_wall.size) else None,
+        vehicle_type=mavlink.MAV_TYPE_SUBMARINE,
+        state_t=state_t, state_wall=state_wall, eta=eta, nu=nu,
+        clock_wall=att_t, clock_t=np.floor(att_t * 1e3) / 1e3,
+        servo_t=servo_t, servo=servo, overrides={}, joysticks={}, motor_tests={},
+        power_wall=power_wall, voltage=voltage, current=current, consumed_wall=power_wall, consumed_mah=consumed,
+        heartbeat_wall=heartbeat_wall, armed=armed, mode=mode,
+        texts=texts, params=params, param_changes=param_changes,
+        mission={}, mission_complete=False, mission_progress=[], home=None, origin=None, others=others,
+        attitude_wall=att_t, attitude=_attitude(attitude),
+        pressure_wall=pressure_wall, pressure_abs=pressure, altitude_wall=altitude_wall, altitude=altitude,
+        range_wall=range_wall, range_m=range_m,
+        targets=controller_tracking.dataflash_errors(r))
 
 
-def _read(reader, count: int, report: ReadReport) -> tuple[list, bool]:
-    """Up to `count` records from `reader`, and whether the readable part has ended (its end, or a record that
-    decodes to nonsense)."""
-    records = []
-    while len(records) < count:
-        try:
-            record = reader.recv_msg()
-        except Exception:        # noqa: BLE001 - a record that decodes to nonsense ends the readable part
-            return records, True
-        if record is None:
-            return records, True
-        records.append(record)
-        report.end = reader.offset
-    return records, False
+def _states(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, wall, eta (N, 6), nu (N, 6)): each position sample paired with the nearest attitude (see the module)."""
+    empty = (np.zeros(0), np.zeros(0), np.zeros((0, 6)), np.zeros((0, 6)))
+    position, attitude = r.get("XKF1"), r.get("ATT")
+    if position is not None and "C" in position:
+        position = position.where(position["C"] == 0)
+    if position is None or not len(position):
+        position = r.get("NKF1")
+    if position is None or attitude is None or len(position) < 1 or len(attitude) < 2:
+        return empty
+    tp, ta = position["TimeUS"] * 1e-6, attitude["TimeUS"] * 1e-6
+    half = 0.5 * float(np.median(np.diff(ta))) if ta.size > 1 else 0.0
+    nearest = np.clip(np.searchsorted(ta, tp), 1, ta.size - 1)
+    nearest = np.where(np.abs(ta[nearest - 1] - tp) <= np.abs(ta[nearest] - tp), nearest - 1, nearest)
+    paired = np.abs(ta[nearest] - tp) <= half + 1e-6
+    if not paired.any():
+        return empty
+    j = nearest[paired]
+    tp, ta_j = tp[paired], ta[j]
+    t = np.maximum(tp, ta_j)
+    pos = np.column_stack([position[k][paired] for k in ("PN", "PE", "PD")])
+    vel = np.column_stack([position[k][paired] for k in ("VN", "VE", "VD")])
+    angles = np.radians(np.column_stack([attitude[k][j] for k in ("Roll", "Pitch", "Yaw")]))
+    rates = _rates_at(r.get("RATE"), ta_j)
+    pos = pos + vel * (t - tp)[:, None]
+    eta_att = np.concatenate([np.zeros((t.size, 3)), angles], axis=1)
+    angles = angles + np.einsum("kij,kj->ki", euler_rate_matrix(eta_att), rates) * (t - ta_j)[:, None]
+    angles[:, 2] = np.remainder(angles[:, 2] + np.pi, 2 * np.pi) - np.pi
+    eta = np.concatenate([pos, angles], axis=1)
+    body = np.einsum("kji,kj->ki", rotation(eta), vel)             # R^T v_NED
+    return np.floor(t * 1e3) / 1e3, t, eta, np.concatenate([body, rates], axis=1)
 
 
-def _armed_at_start(reader) -> bool:
-    """Was the vehicle armed when its log began? ArduSub opens a log at arming unless LOG_DISARMED is 1
-    (`AP_Logger::should_log`), and the arming that opened it is not in it: a log starts armed when its first arming
-    event (ARM, or EV 10/11 in older logs) is a disarm, or, with none, when it was written armed only (LOG_DISARMED
-    0). Read ahead through DFReader's index of each record type, then rewound."""
-    events = [(r.TimeUS, bool(r.ArmState)) for r in _first_records(reader, "ARM", 1)]
-    events += [(r.TimeUS, r.Id == EV_ARMED) for r in _first_records(reader, "EV", None)
-               if r.Id in (EV_ARMED, EV_DISARMED)][:1]
-    written_disarmed = next((r.Value for r in _first_records(reader, "PARM", None) if r.Name == "LOG_DISARMED"), 0)
-    reader.rewind()
-    if events:
-        return not min(events)[1]
-    return not written_disarmed
+def _rates_at(rate: Records | None, t: np.ndarray) -> np.ndarray:
+    """The body rates (rad/s) of the last RATE record at or before each time (zero before the first)."""
+    if rate is None or not len(rate):
+        return np.zeros((t.size, 3))
+    values = np.radians(np.column_stack([rate.get(k, 0.0) for k in ("R", "P", "Y")]))
+    index = np.searchsorted(rate["TimeUS"] * 1e-6, t, side="right") - 1
+    return np.where((index >= 0)[:, None], values[np.maximum(index, 0)], 0.0)
 
 
-def _first_records(reader, name: str, count: int | None) -> Iterator:
-    """The first `count` (None: all) records of type `name`, read by DFReader's index (offsets per type)."""
-    type_id = reader.name_to_id.get(name)
-    if type_id is None:
-        return
-    for offset in reader.offsets[type_id][:count]:
-        reader.offset = offset
-        try:
-            record = reader.recv_msg()
-        except Exception:        # noqa: BLE001 - a record that decodes to nonsense is no event
-            continue
-        if record is not None and record.get_type() == name:
-            yield record
+def _attitude(attitude: Records | None) -> np.ndarray:
+    if attitude is None:
+        return np.zeros((0, 3))
+    angles = np.radians(np.column_stack([attitude[k] for k in ("Roll", "Pitch", "Yaw")]))
+    angles[:, 2] = np.remainder(angles[:, 2] + np.pi, 2 * np.pi) - np.pi
+    return angles
 
 
-class _Replay:
-    """DataFlash records -> the messages ArduSub would have streamed (see the module)."""
-
-    def __init__(self, encoder_of, armed: bool = False):
-        self.encoder_of = encoder_of
-        self.armed = armed
-        self.mode = 0
-        self.rates = (0.0, 0.0, 0.0)            # rad/s, from the last RATE
-
-    def _packed(self, source: tuple[int, int], msg):
-        msg.pack(self.encoder_of(source))
-        return msg
-
-    def take(self, r) -> list[tuple[float, object]]:
-        kind = r.get_type()
-        fields = r.get_fieldnames()
-        if "TimeUS" not in fields:
-            return []
-        t = r.TimeUS * 1e-6
-        ms = int(r.TimeUS // 1000) & 0xFFFFFFFF
-        enc = self.encoder_of(VEHICLE)
-        out = []
-        if kind == "RATE":
-            self.rates = tuple(math.radians(getattr(r, k, 0.0)) for k in ("R", "P", "Y"))
-        elif kind == "ATT":
-            roll, pitch, yaw = (math.radians(getattr(r, k)) for k in ("Roll", "Pitch", "Yaw"))
-            yaw = math.remainder(yaw, 2 * math.pi)
-            out.append(enc.attitude_encode(ms, roll, pitch, yaw, *self.rates))
-        elif kind in ("XKF1", "NKF1") and getattr(r, "C", 0) == 0:
-            out.append(enc.local_position_ned_encode(ms, r.PN, r.PE, r.PD, r.VN, r.VE, r.VD))
-        elif kind == "RCOU":
-            out.append(enc.servo_output_raw_encode(int(r.TimeUS) & 0xFFFFFFFF, 0, *_channels(r, 16)))
-        elif kind == "RCIN":
-            values = _channels(r, 18)
-            out.append(enc.rc_channels_encode(ms, 16, *values, 255))
-        elif kind in ("BAT", "CURR") and getattr(r, "Inst", getattr(r, "Instance", 0)) == 0:
-            volt, curr = getattr(r, "Volt", math.nan), getattr(r, "Curr", math.nan)
-            consumed = getattr(r, "CurrTot", math.nan)
-            millivolts, centiamps = _fit(volt * 1000, UINT16, 65535), _fit(curr * 100, INT16, -1)
-            out.append(enc.sys_status_encode(0, 0, 0, 0, millivolts, centiamps, -1, 0, 0, 0, 0, 0, 0))
-            # BAT.RemPct 255 is ArduPilot's "unknown", as anything beyond 0-100: BATTERY_STATUS's -1
-            out.append(enc.battery_status_encode(0, 0, 0, 32767, [millivolts] + [65535] * 9, centiamps,
-                                                 _fit(consumed, INT32, -1), -1,
-                                                 _fit(getattr(r, "RemPct", -1), (0, 100), -1)))
-        elif kind == "BARO" and getattr(r, "I", 0) == BAR30_INSTANCE and "Press" in fields:
-            out.append(enc.scaled_pressure2_encode(ms, r.Press / 100.0, 0.0, _fit(getattr(r, "Temp", 0) * 100, INT16, 0)))
-        elif kind == "RFND" and getattr(r, "Orient", DOWN) == DOWN and "Dist" in fields \
-                and getattr(r, "Stat", RANGEFINDER_GOOD) == RANGEFINDER_GOOD:
-            out.append(enc.rangefinder_encode(float(r.Dist), 0.0))
-        elif kind == "CTUN" and "Alt" in fields:          # Sub's altitude estimate (m, negative underwater)
-            out.append(enc.global_position_int_encode(ms, 0, 0, 0, _fit(r.Alt * 1000, INT32, 0), 0, 0, 0, 65535))
-        elif kind == "MODE":
-            self.mode = int(getattr(r, "ModeNum", getattr(r, "Mode", 0)))
-            out.append(self._heartbeat(enc))
-        elif kind == "ARM":
-            self.armed = bool(r.ArmState)
-            out.append(self._heartbeat(enc))
-        elif kind == "EV" and r.Id in (EV_ARMED, EV_DISARMED):
-            self.armed = r.Id == EV_ARMED
-            out.append(self._heartbeat(enc))
-        elif kind == "MSG":
-            text = str(r.Message)
-            source, body = VEHICLE, text
-            if text.startswith("GCS:"):
-                source, body = GCS, text[4:]
-            elif found := _SOURCE.match(text):
-                source, body = (int(found.group(1)), int(found.group(2))), text[found.end():]
-            msg = mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_INFO, body.encode()[:50])
-            return [(t, self._packed(source, msg))]
-        elif kind == "PARM":
-            out.append(enc.param_value_encode(str(r.Name).encode(), float(r.Value), mavlink.MAV_PARAM_TYPE_REAL32,
-                                              0, 65535))
-        for msg in out:
-            msg.pack(enc)
-        return [(t, msg) for msg in out]
-
-    def _heartbeat(self, enc):
-        base = MAV_MODE_ARMED_MANUAL | (mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
-        return enc.heartbeat_encode(mavlink.MAV_TYPE_SUBMARINE, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base, self.mode,
-                                    mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY)
+def _outputs(rcou: Records | None) -> tuple[np.ndarray, np.ndarray]:
+    if rcou is None:
+        return np.zeros(0), np.zeros((0, CHANNELS))
+    columns = []
+    for labels in _RC_LABELS[:CHANNELS]:
+        label = next((name for name in labels if name in rcou), None)
+        columns.append(rcou[label].astype(float) if label is not None else np.zeros(len(rcou)))
+    return rcou["TimeUS"] * 1e-6, np.column_stack(columns)
 
 
-def _channels(r, count: int) -> list[int]:
-    out = []
-    for labels in _RC_LABELS[:min(count, 16)]:
-        value = next((getattr(r, name) for name in labels if name in r.get_fieldnames()), 0)
-        out.append(min(max(int(value), 0), 65535))
-    return out + [0] * (count - len(out))
+def _battery(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, V, A, mAh used) of battery instance 0; a value beyond what the vehicle's telemetry can carry, or a
+    negative current, unknown (NaN), as SYS_STATUS and BATTERY_STATUS would say it."""
+    battery = r.get("BAT") if r.get("BAT") is not None else r.get("CURR")
+    if battery is None:
+        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
+    instance = battery.get("Inst", np.nan) if "Inst" in battery else battery.get("Instance", 0.0)
+    battery = battery.where(np.nan_to_num(instance, nan=0.0) == 0)
+    volt, curr, used = battery.get("Volt"), battery.get("Curr"), battery.get("CurrTot")
+    voltage = np.where((volt > 0) & (volt * 1000 < 65535), volt, np.nan)
+    current = np.where((curr >= 0) & (curr * 100 <= 32767), curr, np.nan)
+    consumed = np.where((used >= 0) & (used < 2 ** 31), used, np.nan)
+    return battery["TimeUS"] * 1e-6, voltage, current, consumed
 
 
-UINT16, INT16, INT32 = (0, 65534), (-32768, 32767), (-2**31, 2**31 - 1)   # the MAVLink fields' ranges (65535: unset)
+def _bar30(baro: Records | None) -> tuple[np.ndarray, np.ndarray]:
+    if baro is None or "Press" not in baro:
+        return np.zeros(0), np.zeros(0)
+    bar30 = baro.where(baro.get("I", 0.0) == BAR30_INSTANCE)
+    return bar30["TimeUS"] * 1e-6, bar30["Press"] / 100.0
 
 
-def _fit(value: float, limits: tuple[int, int], missing: int) -> int:
-    """`value` rounded for a MAVLink field whose values lie within `limits`; `missing` (the field's "unknown") when it
-    is not a number or lies beyond them: never clamped to a value the vehicle did not log."""
-    if not math.isfinite(value) or not limits[0] <= round(value) <= limits[1]:
-        return missing
-    return int(round(value))
+def _altitude(ctun: Records | None) -> tuple[np.ndarray, np.ndarray]:
+    """CTUN.Alt: Sub's altitude estimate (m, negative underwater)."""
+    if ctun is None or "Alt" not in ctun:
+        return np.zeros(0), np.zeros(0)
+    known = np.isfinite(ctun["Alt"])
+    return ctun["TimeUS"][known] * 1e-6, ctun["Alt"][known]
+
+
+def _rangefinder(rfnd: Records | None) -> tuple[np.ndarray, np.ndarray]:
+    if rfnd is None or "Dist" not in rfnd:
+        return np.zeros(0), np.zeros(0)
+    good = (rfnd.get("Orient", DOWN) == DOWN) & (rfnd.get("Stat", RANGEFINDER_GOOD) == RANGEFINDER_GOOD)
+    return rfnd["TimeUS"][good] * 1e-6, rfnd["Dist"][good]
+
+
+def _parameters(parm: Records | None) -> tuple[dict[str, float], list[tuple[float, str, float]]]:
+    """The last value of each parameter, and (t, name, value) of each later change."""
+    params: dict[str, float] = {}
+    changes = []
+    if parm is None:
+        return params, changes
+    for t, name, value in zip(parm["TimeUS"] * 1e-6, parm.texts("Name"), parm["Value"].tolist()):
+        if name in params and params[name] != value:
+            changes.append((float(t), name, float(value)))
+        params[name] = float(value)
+    return params, changes
+
+
+def _texts(msg: Records | None) -> tuple[list[tuple[float, int, int, str]], set[int]]:
+    """(t, sysid, severity, text) of each MSG (the vehicle's, or a station's, its prefix taken off), and the
+    stations that wrote one."""
+    texts, others = [], set()
+    if msg is None:
+        return texts, others
+    for t, text in zip(msg["TimeUS"] * 1e-6, msg.texts("Message")):
+        sysid = VEHICLE[0]
+        if text.startswith("GCS:"):
+            sysid, text = GCS_SYSID, text[4:]
+        elif found := _SOURCE.match(text):
+            sysid, text = int(found.group(1)), text[found.end():]
+        if sysid != VEHICLE[0]:
+            others.add(sysid)
+        texts.append((float(t), sysid, mavlink.MAV_SEVERITY_INFO, text))
+    return texts, others
+
+
+def _arming_and_modes(r: dict[str, Records], params: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, armed, mode) at each MODE, ARM and arming EV record, in file order, from the state the log began in."""
+    events = []                                      # (offset, t, kind, value)
+    if (mode := r.get("MODE")) is not None:
+        numbers = mode["ModeNum"] if "ModeNum" in mode else mode["Mode"]
+        events += [(o, t, "mode", int(v)) for o, t, v in zip(mode.offsets, mode["TimeUS"], numbers)]
+    if (arm := r.get("ARM")) is not None:
+        events += [(o, t, "armed", bool(v)) for o, t, v in zip(arm.offsets, arm["TimeUS"], arm["ArmState"])]
+    if (ev := r.get("EV")) is not None:
+        events += [(o, t, "armed", v == EV_ARMED) for o, t, v in zip(ev.offsets, ev["TimeUS"], ev["Id"])
+                   if v in (EV_ARMED, EV_DISARMED)]
+    events.sort()
+    arming = [value for _, _, kind, value in events if kind == "armed"]
+    armed = not arming[0] if arming else not params.get("LOG_DISARMED", 0.0)
+    current_mode, out = 0, []
+    for _, t, kind, value in events:
+        if kind == "mode":
+            current_mode = value
+        else:
+            armed = value
+        out.append((t * 1e-6, armed, current_mode))
+    if not out:
+        return np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0, dtype=int)
+    t, a, m = zip(*out)
+    return np.array(t, dtype=float), np.array(a, dtype=bool), np.array(m, dtype=int)

@@ -20,6 +20,7 @@ from rov_mav.flight.link import CHANNELS, MOTOR_TEST_PWM, NEUTRAL, mavlink
 from rov_mav.flight.truth import Truth
 from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
 from rov_mav.mission.mission_items import MissionItem
+from rov_mav.review import controller_tracking
 
 HELD = 20000                 # messages held while the vehicle is not yet known
 UNSET = (0, 65535)           # RC_CHANNELS_OVERRIDE values that leave a channel alone
@@ -73,9 +74,8 @@ class Dive:
                                                                             # altitude (m, up; negative underwater)
     range_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))     # (R,) the rangefinder's log times ...
     range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (R,) ... its distance (m)
-    nav_wall: np.ndarray = field(default_factory=lambda: np.zeros(0))       # (C,) NAV_CONTROLLER_OUTPUT's log times
-    nav: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))       # (C, 4) ... nav_roll, nav_pitch,
-                                                                            # nav_bearing (deg), alt_error (m)
+    targets: dict = field(default_factory=dict)   # name -> controller_tracking.Errors: ArduSub's own controllers
+                                                  # against the targets they logged (NAV_CONTROLLER_OUTPUT in a .tlog)
 
 
 class DiveRecorder:
@@ -150,7 +150,8 @@ class DiveRecorder:
             pressure_wall=self._pressure.column("wall"), pressure_abs=self._pressure.column("abs"),
             altitude_wall=self._altitude.column("wall"), altitude=self._altitude.column("m"),
             range_wall=self._range.column("wall"), range_m=self._range.column("m"),
-            nav_wall=self._nav.column("wall"), nav=self._nav.column("targets"))
+            targets=controller_tracking.telemetry_errors(self._nav.column("wall"), self._nav.column("targets"),
+                                                         self._attitude.column("wall"), self._attitude.column("rpy")))
 
     # -- who is the vehicle ----------------------------------------------------------------------------------
 

@@ -23,8 +23,7 @@ from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, tru
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace
 from rov_mav.review import analysis, controller_tracking
-from rov_mav.review.dataflash_log import read_dataflash
-from rov_mav.review.dataflash_records import read_records
+from rov_mav.review.dataflash_log import read_dataflash_dive
 from rov_mav.review.dive import Dive, DiveRecorder
 from rov_mav.review.logdir import RunFolder, column_block, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
@@ -32,7 +31,6 @@ from rov_mav.review.tlog import ReadReport, read_tlog
 from rov_mav.telemetry.entities import TickColumns
 
 AUTO = 3                         # ArduSub's custom_mode of AUTO
-TRACKED_RECORDS = ("CTUN", "PSCN", "PSCE", "ATT")   # a DataFlash log's targets and actuals (`controller_tracking`)
 MATCH_TICKS = 50                 # ticks matched against the log's states to find their vehicle time
 LISTED_GAPS = 20                 # telemetry gaps put in the events one by one
 TRUTH_WALL = 0.1                 # log s: a SIM_STATE recorded this near a state is its truth
@@ -80,11 +78,13 @@ def read_dive(path: Path) -> tuple[ReadReport, Dive]:
     """A telemetry log (.tlog) or a DataFlash log (.BIN) decoded as a `Dive` (ConfigError, one line, if nothing of a
     vehicle is in it)."""
     report = ReadReport(str(path), 0)
-    recorder = DiveRecorder()
-    records = read_dataflash(path, report) if path.suffix.lower() == ".bin" else read_tlog(path, report)
-    for wall, msg in records:
-        recorder.take(wall, msg)
-    dive = recorder.finish()
+    if path.suffix.lower() == ".bin":
+        dive = read_dataflash_dive(path, report)
+    else:
+        recorder = DiveRecorder()
+        for wall, msg in read_tlog(path, report):
+            recorder.take(wall, msg)
+        dive = recorder.finish()
     if report.messages == 0:
         what = "dataflash record" if path.suffix.lower() == ".bin" else "MAVLink message"
         raise ConfigError(f"{path}: no {what} could be read ({report.size} bytes: not a telemetry log?)")
@@ -173,21 +173,17 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
                                                                        stream[main][1][in_window])}
     kind = "DataFlash log" if report.dataflash else "telemetry log"
     _dive_figures(review, dive, t0, window, commands, source=kind)
-    metrics["ardusub_tracking"] = _ardusub_tracking(path, report, dive, t0)
+    metrics["ardusub_tracking"] = _ardusub_tracking(report, dive, t0)
     metrics["source"] = _source(path, kind, report)
     return review
 
 
-def _ardusub_tracking(path: Path, report: ReadReport, dive: Dive, t0: float) -> list[dict]:
+def _ardusub_tracking(report: ReadReport, dive: Dive, t0: float) -> list[dict]:
     """ArduSub's own controllers against the targets it logged, per armed stretch of a mode (`controller_tracking`);
     times in review seconds."""
-    if report.dataflash:
-        errors = controller_tracking.dataflash_errors(read_records(path, TRACKED_RECORDS))
-    else:
-        errors = controller_tracking.telemetry_errors(dive.nav_wall, dive.nav, dive.attitude_wall, dive.attitude)
     end = report.last_wall if report.last_wall is not None else float(dive.heartbeat_wall[-1:].sum())
     stretches = controller_tracking.armed_stretches(dive.heartbeat_wall, dive.armed, dive.mode, end)
-    out = controller_tracking.figures(stretches, errors)
+    out = controller_tracking.figures(stretches, dive.targets)
     for entry in out:
         entry["from_s"], entry["to_s"] = (float(v) - t0 for v in
                                           analysis.vehicle_time(dive, [entry["from_s"], entry["to_s"]]))
