@@ -112,7 +112,8 @@ def test_a_runs_log_folder_gives_the_runs_own_metrics(own_run, tmp_path):
     assert figures == {"dofs.png", "path3d.png", "estimates.png", "rates.png", "thrusters.png", "timeline.png"}
     t, _ = read_column(out / "dive.rrd", "pose/x", "Scalars:scalars")
     assert t.size == m["loop"]["ticks"]                                 # one row per tick, as a live recording
-    assert "tracking: position RMS" in r.stdout and "battery:" in r.stdout and "modes:" in r.stdout
+    assert "tracking: position RMS" in r.stdout and "battery:" in r.stdout
+    assert "  modes (t = 0: announced by the rov-mav run on the link): " in r.stdout
     # The run's figures under the names ArduSub's are measured by: depth and horizontal errors split the position
     # error (their mean squares add up to its), and the three angles' to the attitude error's
     peer = m["rov_mav_tracking"]["errors"]

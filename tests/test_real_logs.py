@@ -7,12 +7,15 @@ checkout); without it every test here is skipped, saying so."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from pymavlink import DFReader, mavutil
+from telemetry_helpers import read_column
 
 from rov_mav import cli
 from rov_mav.review.dive_review import review_dive
@@ -224,3 +227,26 @@ def test_identify_on_a_standard_frames_dive_refuses_the_heavy_prior_in_one_line(
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
     assert err.count("\n") == 1 and "FRAME_CONFIG 1 (VECTORED, 6 motors)" in err and "FRAME_CONFIG 2" in err, err
+
+
+def test_the_summary_says_where_time_starts_and_what_the_log_began_in(capsys, tmp_path):
+    """A pilot's telemetry log that begins 206 s before the arming reads so, not as "-206.0 s disarmed"."""
+    assert cli.main(["analyze", str(Path(FOLDER) / "small.tlog"), "--out", str(tmp_path), "--rerun", "off"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("  modes"))
+    assert line.startswith("  modes (t = 0: the first arming): -206.0 s log starts disarmed, MANUAL; 0.0 s armed"), line
+
+
+def test_arduSubs_errors_to_its_targets_are_recorded_and_drawn_where_its_modes_held_them(tmp_path, capsys):
+    """The pilot's dive reviewed with its recording: ArduSub's depth error in the recording exactly where ALT_HOLD
+    held a depth (the metrics' stretches), and its timeline figure drawn."""
+    out = tmp_path / "review"
+    assert cli.main(["analyze", str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN"), "--out", str(out), "--rerun",
+                     f"save:{out / 'dive.rrd'}"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    held = [s for s in metrics["ardusub_tracking"] if "depth_m" in s["errors"]]
+    t, values = read_column(out / "dive.rrd", "ardusub/error/depth_m", "Scalars:scalars")
+    assert t.size == sum(s["errors"]["depth_m"]["samples"] for s in held)
+    assert all(any(s["from_s"] - 1e-6 <= ti <= s["to_s"] for s in held) for ti in t)
+    depth = np.abs(np.array([v[0] for v in values]))
+    assert depth.max() == pytest.approx(max(s["errors"]["depth_m"]["max"] for s in held), rel=1e-6)
+    assert (out / "timeline.png").stat().st_size > 0

@@ -94,7 +94,8 @@ def main(args: argparse.Namespace) -> int:
     figures = write_figures(review, out_dir)
     metrics_path.parent.mkdir(parents=True, exist_ok=True)
     metrics_path.write_text(json.dumps(_plain(review.metrics), indent=2) + "\n")
-    rerun_target, rec = rerun_recording(args, out_dir / "dive.rrd", review.reference_path)
+    rerun_target, rec = rerun_recording(args, out_dir / "dive.rrd", review.reference_path,
+                                        ardusub_targets=bool(review.targets))
     delivered = True
     if rec is not None:
         record(review, rec, vehicle)
@@ -169,9 +170,12 @@ def summary(label: str, m: dict) -> list[str]:
                      f"{v.get('frame') or 'frame not in the log'}")
     modes = m.get("modes", [])
     if modes:
-        shown = "; ".join(f"{e['t']:.1f} s {e['event']}" for e in modes[:MODES_SHOWN])
+        shown = "; ".join(f"{e['t']:.1f} s {'log starts ' if i == 0 else ''}{e['event']}"
+                          for i, e in enumerate(modes[:MODES_SHOWN]))
         more = f"; ... and {len(modes) - MODES_SHOWN} more" if len(modes) > MODES_SHOWN else ""
-        lines.append(f"  modes: {shown}{more}")
+        reference = m.get("reference", {})
+        zero = reference.get("time_zero_from") or reference.get("mission_start_from")
+        lines.append(f"  modes{f' (t = 0: {zero})' if zero else ''}: {shown}{more}")
     if m.get("rov_mav_tracking"):
         lines.append("  rov-mav's control, " + controller_tracking.describe(m["rov_mav_tracking"]))
     for entry in m.get("ardusub_tracking", []):

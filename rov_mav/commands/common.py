@@ -172,16 +172,17 @@ def add_rerun_option(parser: argparse.ArgumentParser) -> None:
 
 
 def rerun_recording(args: argparse.Namespace, default_file: str | Path, reference_path: np.ndarray | None = None,
-                    tuning: bool = False) -> tuple[telemetry.RerunTarget, rr.RecordingStream | None]:
+                    tuning: bool = False, ardusub_targets: bool = False
+                    ) -> tuple[telemetry.RerunTarget, rr.RecordingStream | None]:
     """The --rerun target (default: spawn with a display, else save to `default_file`) and its open recording,
-    whose default layout frames `reference_path` (M, 3) (with the PSO tab when `tuning`). Without a viewer to
-    stream to, it saves instead."""
+    whose default layout frames `reference_path` (M, 3) (with the PSO tab when `tuning`, ArduSub's errors to its
+    targets when `ardusub_targets`). Without a viewer to stream to, it saves instead."""
     from rov_mav import telemetry
 
     target = args.rerun or telemetry.default_target(default_file)
     if target.mode == "off":
         return target, None
-    blueprint = telemetry.default_blueprint(reference_path, tuning)
+    blueprint = telemetry.default_blueprint(reference_path, tuning, ardusub_targets)
     try:
         return target, telemetry.open_recording(target, blueprint)
     except telemetry.ViewerUnavailable as exc:

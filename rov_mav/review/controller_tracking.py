@@ -80,6 +80,20 @@ def figures(stretches: list[Stretch], errors: dict[str, Errors]) -> list[dict]:
     return out
 
 
+def held(stretches: list[Stretch], errors: dict[str, Errors]) -> dict[str, Errors]:
+    """Each target's errors only where a stretch's mode held it (what a figure of ArduSub's control should show)."""
+    out = {}
+    for name, series in errors.items():
+        inside = np.zeros(series.t.size, dtype=bool)
+        for stretch in stretches:
+            if stretch.mode in HOLDS[name]:
+                inside |= (series.t >= stretch.start) & (series.t < stretch.end)
+        inside &= np.isfinite(series.error)
+        if inside.any():
+            out[name] = Errors(series.t[inside], series.error[inside])
+    return out
+
+
 def stretch_figures(label: str, start: float, end: float, errors: dict[str, Errors]) -> dict:
     """Each target's RMS and largest error over [start, end), and its samples (none with fewer than MIN_SAMPLES)."""
     signals = {}

@@ -54,6 +54,8 @@ class DiveReview:
     limits: tuple[np.ndarray, np.ndarray] = (np.full(CHANNELS, 1100.0), np.full(CHANNELS, 1900.0))
     timeline: list[tuple[str, dict[str, tuple[np.ndarray, np.ndarray]]]] = field(default_factory=list)
     marks: list[tuple[float, str]] = field(default_factory=list)    # arming and mode changes (t, text)
+    targets: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # ArduSub's error to its own
+                                                  # targets where a mode held them: name -> (t, error)
 
 
 def dive_name(path: str | Path) -> str:
@@ -173,21 +175,28 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
                                                                        stream[main][1][in_window])}
     kind = "DataFlash log" if report.dataflash else "telemetry log"
     _dive_figures(review, dive, t0, window, commands, source=kind)
-    metrics["ardusub_tracking"] = _ardusub_tracking(report, dive, t0)
+    metrics["ardusub_tracking"], review.targets = _ardusub_tracking(report, dive, t0)
+    for unit in ("m", "deg"):
+        lines = {name.removesuffix(f"_{unit}").replace("_", " "): series for name, series in review.targets.items()
+                 if name.endswith(f"_{unit}")}
+        if lines:
+            review.timeline.append((f"ArduSub's error to its targets ({unit})", lines))
     metrics["source"] = _source(path, kind, report)
     return review
 
 
-def _ardusub_tracking(report: ReadReport, dive: Dive, t0: float) -> list[dict]:
-    """ArduSub's own controllers against the targets it logged, per armed stretch of a mode (`controller_tracking`);
-    times in review seconds."""
+def _ardusub_tracking(report: ReadReport, dive: Dive, t0: float) -> tuple[list[dict], dict]:
+    """ArduSub's own controllers against the targets it logged, per armed stretch of a mode (`controller_tracking`),
+    and each target's errors where a mode held it, as (review s, error); times in review seconds."""
     end = report.last_wall if report.last_wall is not None else float(dive.heartbeat_wall[-1:].sum())
     stretches = controller_tracking.armed_stretches(dive.heartbeat_wall, dive.armed, dive.mode, end)
     out = controller_tracking.figures(stretches, dive.targets)
     for entry in out:
         entry["from_s"], entry["to_s"] = (float(v) - t0 for v in
                                           analysis.vehicle_time(dive, [entry["from_s"], entry["to_s"]]))
-    return out
+    series = {name: (analysis.vehicle_time(dive, errors.t) - t0, errors.error)
+              for name, errors in controller_tracking.held(stretches, dive.targets).items()}
+    return out, series
 
 
 def _passthrough(dive: Dive) -> bool:

@@ -10,7 +10,7 @@ import rerun as rr
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline.plots import plot_dofs, plot_estimates, plot_path, plot_rates, plot_thrusters, plot_timeline
 from rov_mav.review.dive_review import DiveReview
-from rov_mav.telemetry.entities import log_static, send_events, send_ticks
+from rov_mav.telemetry.entities import log_static, send_events, send_target_errors, send_ticks
 
 
 def write_figures(review: DiveReview, out_dir: Path) -> list[Path]:
@@ -39,3 +39,4 @@ def record(review: DiveReview, rec: rr.RecordingStream, vehicle: Vehicle) -> Non
     if review.columns is not None:
         send_ticks(rec, review.columns, vehicle)
     send_events(rec, review.events)
+    send_target_errors(rec, review.targets)

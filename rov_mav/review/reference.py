@@ -36,6 +36,8 @@ def mission_start(dive: Dive, given: float | None = None) -> tuple[float | None,
         return float(np.interp(dive.heartbeat_wall[armed[0]], dive.clock_wall, dive.clock_t)), "the first arming"
     if dive.state_t.size:
         return float(dive.state_t[0]), "the first state in the log"
+    if dive.clock_t.size:
+        return float(dive.clock_t[0]), "the start of the log"
     return None, "no state in the log"
 
 

@@ -22,8 +22,10 @@ def _eye(path: np.ndarray) -> rrb.EyeControls3D:
                              eye_up=[0.0, 0.0, -1.0])
 
 
-def default_blueprint(reference_path: np.ndarray | None = None, tuning: bool = False) -> rrb.Blueprint:
-    """3D view and events | tabs: tracking, pose, control, thrusters, link (and PSO convergence first, for `tune`).
+def default_blueprint(reference_path: np.ndarray | None = None, tuning: bool = False,
+                      ardusub_targets: bool = False) -> rrb.Blueprint:
+    """3D view and events | tabs: tracking, pose, control, thrusters, link (and PSO convergence first, for `tune`;
+    ArduSub's own errors to its targets in the tracking tab, for a reviewed dive that logged them).
 
     The camera frames `reference_path`."""
     whole_run = rrb.VisibleTimeRanges(rrb.VisibleTimeRange(
@@ -35,6 +37,8 @@ def default_blueprint(reference_path: np.ndarray | None = None, tuning: bool = F
         _plot(e.ATTITUDE_ERROR, "Attitude error (deg)"),
         _plot(e.DISTURBANCE_FORCE, "Disturbance force: estimate vs true (N)"),
         _plot(e.DISTURBANCE_MOMENT, "Disturbance moment: estimate vs true (N m)"),
+        *([_plot(e.ARDUSUB_ERRORS, "ArduSub's own control: error to its logged targets (m, deg)")]
+          if ardusub_targets else []),
         name="Tracking")
     pose = rrb.Grid(*(_plot(path, f"{dof} ({unit})") for path, dof, unit in zip(e.POSE, e.DOFS, e.DOF_UNITS)),
                     grid_columns=2, name="Pose vs reference")

@@ -52,6 +52,7 @@ THRUST, PWM = "thrusters/thrust", "thrusters/pwm"
 LINK, BATTERY, PROGRESS, EVENTS = "link", "battery", "mission/progress", "events"
 VEHICLE, HULL, ARROWS = "world/vehicle", "world/vehicle/hull", "world/vehicle/thrust"
 REFERENCE_PATH, REFERENCE_NOW, TRAIL = "world/reference/path", "world/reference/now", "world/trail"
+ARDUSUB_ERRORS = "ardusub/error"    # + "/<target>": ArduSub's own controllers against their logged targets
 PSO_TIMELINE = "pso_iteration"
 BEST_COST, BEST_K1, BEST_K2 = "tuning/best_cost", "tuning/k1", "tuning/k2"
 
@@ -200,6 +201,14 @@ def send_events(rec: rr.RecordingStream, events: Sequence[tuple[float, str, str]
     levels = ["WARN" if lv.upper() == "WARNING" else lv.upper() for lv in level]
     rec.send_columns(EVENTS, indexes=[rr.TimeColumn(TIMELINE, duration=np.array(t, dtype=float))],
                      columns=rr.TextLog.columns(text=list(text), level=levels))
+
+
+def send_target_errors(rec: rr.RecordingStream, series: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """ArduSub's error to each target it logged, where its mode held it: name -> (t, error), one entity each under
+    ARDUSUB_ERRORS (`review.controller_tracking`)."""
+    for name, (t, error) in series.items():
+        rec.send_columns(f"{ARDUSUB_ERRORS}/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(t, float))],
+                         columns=rr.Scalars.columns(scalars=np.asarray(error, dtype=float)))
 
 
 def send_convergence(rec: rr.RecordingStream, cost_history: np.ndarray, gain_history: np.ndarray) -> None:
