@@ -250,3 +250,21 @@ def test_arduSubs_errors_to_its_targets_are_recorded_and_drawn_where_its_modes_h
     depth = np.abs(np.array([v[0] for v in values]))
     assert depth.max() == pytest.approx(max(s["errors"]["depth_m"]["max"] for s in held), rel=1e-6)
     assert (out / "timeline.png").stat().st_size > 0
+
+
+def test_what_only_the_dataflash_log_holds_is_dfreaders_reading_of_it(reviews):
+    """The EKF's innovation test ratios and the motors' limits of the pilot's dive, as DFReader alone reads them."""
+    reader = DFReader.DFReader_binary(str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN"))
+    compass, height, lift, rejected = [], [], [], 0
+    while (r := reader.recv_match(type=["XKF4", "MOTB"])) is not None:
+        if r.get_type() == "XKF4" and r.C == 0:
+            compass.append(r.SM)
+            height.append(r.SH)
+        elif r.get_type() == "MOTB":
+            lift.append(r.LiftMax)
+    onboard = reviews["mohai-2023-10-18-00000016.BIN"]["onboard"]
+    assert onboard["ekf"]["test_ratio_max"]["compass"] == pytest.approx(max(compass))
+    assert onboard["ekf"]["rejected_share"]["compass"] == pytest.approx(sum(v > 1 for v in compass) / len(compass))
+    assert onboard["ekf"]["test_ratio_max"]["height"] == pytest.approx(max(height))
+    assert onboard["motors"]["lift_max_min"] == pytest.approx(min(lift)) and onboard["motors"]["samples"] == len(lift)
+    assert "onboard" not in reviews["mohai-2023-10-18-10-44-55.tlog"]      # a telemetry log holds none of it

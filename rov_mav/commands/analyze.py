@@ -24,7 +24,7 @@ from rov_mav.commands.common import (
     load_mission,
     rerun_recording,
 )
-from rov_mav.review import controller_tracking
+from rov_mav.review import controller_tracking, onboard
 
 DESCRIPTION = """\
 Review a dive: PATH is a run's --log folder (ticks.csv, events.csv, and mavlink.tlog or the vehicle's own .BIN
@@ -180,6 +180,7 @@ def summary(label: str, m: dict) -> list[str]:
         lines.append("  rov-mav's control, " + controller_tracking.describe(m["rov_mav_tracking"]))
     for entry in m.get("ardusub_tracking", []):
         lines.append("  ArduSub's own control, " + controller_tracking.describe(entry))
+    lines += onboard.describe(m.get("onboard", {}))
     if m.get("statustext", {}).get("count"):
         lines.append(f"  vehicle texts: {m['statustext']['count']} STATUSTEXT ({m['statustext']['warnings']} "
                      "warnings or worse)")

@@ -14,7 +14,8 @@ TimeUS, both the log time and the vehicle's (a DataFlash log has no wall clock w
 - arming and modes: MODE, ARM (EV 10/11 in older logs) in file order, from the state the log began in (ArduSub opens a
   log at arming unless LOG_DISARMED is 1, `AP_Logger::should_log`, and the arming that opened it is not in it);
 - texts MSG ("GCS:" or "SRC=sysid/compid:" before a station's text, `GCS_MAVLINK::handle_statustext`), PARM;
-- ArduSub's own targets for `controller_tracking` (CTUN, PSCN/PSCE, ATT).
+- ArduSub's own targets for `controller_tracking` (CTUN, PSCN/PSCE, ATT); the EKF's health, the motors' limits and
+  external navigation (`onboard`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 
 from rov_mav.flight.link import CHANNELS, mavlink
 from rov_mav.model.dynamics import euler_rate_matrix, rotation
-from rov_mav.review import controller_tracking
+from rov_mav.review import controller_tracking, onboard
 from rov_mav.review.dataflash_records import Records, index_dataflash
 from rov_mav.review.dive import Dive
 from rov_mav.review.tlog import ReadReport
@@ -47,7 +48,7 @@ _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 def read_dataflash_dive(path: str | Path, report: ReadReport) -> Dive:
     """The Dive a .BIN holds; `report` says what was read (records, damaged stretches, where it stopped)."""
     index = index_dataflash(path, report)
-    r = dict(index.records(TYPES))
+    r = dict(index.records(TYPES + onboard.TYPES))
     timed = [records for records in r.values() if len(records) and "TimeUS" in records]
     if timed:
         last = max(timed, key=lambda records: records.offsets[-1])        # the latest record in the file
@@ -76,7 +77,7 @@ def read_dataflash_dive(path: str | Path, report: ReadReport) -> Dive:
         attitude_wall=att_t, attitude=_attitude(attitude),
         pressure_wall=pressure_wall, pressure_abs=pressure, altitude_wall=altitude_wall, altitude=altitude,
         range_wall=range_wall, range_m=range_m,
-        targets=controller_tracking.dataflash_errors(r))
+        targets=controller_tracking.dataflash_errors(r), onboard=onboard.onboard(r))
 
 
 def _states(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

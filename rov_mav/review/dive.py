@@ -76,6 +76,7 @@ class Dive:
     range_m: np.ndarray = field(default_factory=lambda: np.zeros(0))        # (R,) ... its distance (m)
     targets: dict = field(default_factory=dict)   # name -> controller_tracking.Errors: ArduSub's own controllers
                                                   # against the targets they logged (NAV_CONTROLLER_OUTPUT in a .tlog)
+    onboard: dict = field(default_factory=dict)   # what only a DataFlash log holds, summed up (`review.onboard`)
 
 
 class DiveRecorder:

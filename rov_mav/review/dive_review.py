@@ -176,6 +176,8 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     kind = "DataFlash log" if report.dataflash else "telemetry log"
     _dive_figures(review, dive, t0, window, commands, source=kind)
     metrics["ardusub_tracking"], review.targets = _ardusub_tracking(report, dive, t0)
+    if dive.onboard:
+        metrics["onboard"] = dive.onboard
     for unit in ("m", "deg"):
         lines = {name.removesuffix(f"_{unit}").replace("_", " "): series for name, series in review.targets.items()
                  if name.endswith(f"_{unit}")}
