@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 RERUN ?= $(if $(DISPLAY)$(WAYLAND_DISPLAY),spawn,save:out/square/run.rrd)
 ARGS ?=
 
-.PHONY: setup run test docs bench bench-tune bench-particles reproduce clean
+.PHONY: setup run test test-fast docs bench bench-tune bench-particles reproduce clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,11 @@ run: setup
 
 test: setup
 	$(BIN)/python -m pytest -q
+
+# The tests that start no process and no bridge (tests/conftest.py's `process` marker): the physics, the math, the
+# readers; for the loop of a change. `make test` (what CI runs) is the whole suite.
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not process" -n 2
 
 docs: setup
 	$(BIN)/sphinx-build -W --keep-going -n -q -b html docs docs/_build/html

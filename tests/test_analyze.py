@@ -81,6 +81,7 @@ def own_run(tmp_path_factory):
 
 # -- our own logs --------------------------------------------------------------------------------------------
 
+@pytest.mark.process
 def test_a_runs_log_folder_gives_the_runs_own_metrics(own_run, tmp_path):
     log, run_metrics, _ = own_run
     out = tmp_path / "review"
@@ -124,6 +125,7 @@ def test_a_runs_log_folder_gives_the_runs_own_metrics(own_run, tmp_path):
     assert "rov-mav's control" in r.stdout
 
 
+@pytest.mark.process
 def test_a_runs_telemetry_log_alone_against_its_mission(own_run):
     log, run_metrics, mission = own_run
     planned = load_mission(mission)
@@ -153,6 +155,7 @@ def test_a_runs_telemetry_log_alone_against_its_mission(own_run):
 
 # -- a dive we did not fly -----------------------------------------------------------------------------------
 
+@pytest.mark.process
 def test_a_pilots_dive_recorded_by_mavproxy(tmp_path):
     """MAVProxy drives the built-in vehicle in MANUAL with RC overrides (real time: its heartbeat is 1 Hz of wall
     time) and records the telemetry log: full throttle down for 2 s (the four vertical thrusters at their limit),
@@ -212,6 +215,7 @@ def test_a_pilots_dive_recorded_by_mavproxy(tmp_path):
     assert {p.name for p in out.glob("*.png")} == {"dofs.png", "path3d.png", "thrusters.png", "timeline.png"}
 
 
+@pytest.mark.process
 def test_ardusub_flying_its_own_mission_in_auto(tmp_path):
     """ArduSub SITL flies three waypoints at 2 m in AUTO, uploaded and recorded by MAVProxy: the review finds the
     mission in the log and measures the path against where ArduSub steers."""
@@ -259,6 +263,7 @@ def test_ardusub_flying_its_own_mission_in_auto(tmp_path):
 
 # -- damaged logs --------------------------------------------------------------------------------------------
 
+@pytest.mark.process
 def test_a_truncated_telemetry_log_is_read_as_far_as_it_goes(own_run, tmp_path):
     log, run_metrics, mission = own_run
     data = (log / "mavlink.tlog").read_bytes()
@@ -277,6 +282,7 @@ def test_a_truncated_telemetry_log_is_read_as_far_as_it_goes(own_run, tmp_path):
     assert m["duration_s"] < run_metrics["duration_s"]
 
 
+@pytest.mark.process
 def test_a_truncated_ticks_file_stops_at_the_cut_row(own_run, tmp_path):
     log, _, _ = own_run
     folder = tmp_path / "log"
@@ -292,6 +298,7 @@ def test_a_truncated_ticks_file_stops_at_the_cut_row(own_run, tmp_path):
     assert review.metrics["loop"]["ticks"] == 100 and review.trace.t.size == 100
 
 
+@pytest.mark.process
 def test_a_damaged_telemetry_log_skips_the_damage_and_says_where(own_run, tmp_path):
     log, _, mission_file = own_run
     original = log / "mavlink.tlog"
@@ -334,6 +341,7 @@ def test_a_damaged_telemetry_log_skips_the_damage_and_says_where(own_run, tmp_pa
     (b"", "flight.BIN", "empty: not a dataflash log"),
     (b"#!garbage\n" * 10, "flight.log", "a dataflash text log"),
 ])
+@pytest.mark.process
 def test_nothing_usable_is_one_line_and_exit_2(tmp_path, content, name, expected):
     (tmp_path / name).write_bytes(content)
     r = analyze(str(tmp_path / name), "--out", str(tmp_path / "review"), "--rerun", "off")
@@ -342,6 +350,7 @@ def test_nothing_usable_is_one_line_and_exit_2(tmp_path, content, name, expected
     assert not (tmp_path / "review").exists()
 
 
+@pytest.mark.process
 def test_not_a_log_is_one_line_and_exit_2(tmp_path):
     (tmp_path / "somewhere").mkdir()
     for path in (tmp_path / "somewhere", tmp_path / "missing.tlog"):
@@ -357,6 +366,7 @@ def test_cross_track_error_is_the_distance_to_the_nearest_leg():
     assert path_deviation(points, path) == pytest.approx([1.0, 1.0, 1.0, math.hypot(2, 1), 0.5])
 
 
+@pytest.mark.process
 def test_a_tlog_record_is_eight_bytes_of_time_then_the_packet(own_run):
     log, _, _ = own_run
     start, end, _ = records(log / "mavlink.tlog")[0]
@@ -366,6 +376,7 @@ def test_a_tlog_record_is_eight_bytes_of_time_then_the_packet(own_run):
 
 # -- the vehicle's own log (DataFlash) --------------------------------------------------------------------------
 
+@pytest.mark.process
 def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_says_where_it_stopped(tmp_path):
     """A run against a bridge process writing its own .BIN (`--log-dir`): the run's log folder with the .BIN in place
     of mavlink.tlog is reviewed with the run's ticks and the vehicle's records placed by the announced start;
@@ -409,6 +420,7 @@ def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_say
     assert read["power_off_tail"] and 0 < read["bytes"] - read["read_up_to_byte"] < 256
 
 
+@pytest.mark.process
 def test_a_dive_without_a_position_source_is_reviewed_from_what_the_vehicle_has(tmp_path):
     """Most BlueROV2s have no DVL or acoustic positioning: a log with ATTITUDE, the Bar30 (SCALED_PRESSURE2), a
     downward rangefinder (DISTANCE_SENSOR), outputs and battery, and no LOCAL_POSITION_NED. analyze reviews the

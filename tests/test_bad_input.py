@@ -415,6 +415,7 @@ def run_process(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
                           timeout=120, preexec_fn=_drop_file_permission_override if os.geteuid() == 0 else None)
 
 
+@pytest.mark.process
 def test_unreadable_file_and_unwritable_folder_in_a_real_process(workdir):
     mission = workdir.parent / "inputs" / "locked.yaml"
     mission.write_text(Path(SQUARE).read_text())
@@ -436,6 +437,7 @@ def test_unreadable_file_and_unwritable_folder_in_a_real_process(workdir):
     assert files_under(workdir) == set() and files_under(locked) == set()
 
 
+@pytest.mark.process
 def test_the_issue_cases_through_the_console_script(workdir):
     """As reported, as a user meets them: a PNG as --gains (read after the mission), --sysid 999 (refused by
     argparse); the other reported cases run in-process above."""

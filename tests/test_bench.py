@@ -250,6 +250,7 @@ def test_several_tunes_through_the_cli(tmp_path, capsys, line):
     assert "2 independent tunes, swarm seeds 0-1" in table and "| line | smc | " in table.split("## Each tune")[1]
 
 
+@pytest.mark.process
 def test_into_a_log_the_progress_bar_writes_seldom(tmp_path):
     """stderr a pipe (a CI log, `2> file`): the bar starts and ends, and in between updates every 30 s at most,
     not every 0.1 s as on a terminal (a 6-minute bench wrote 1,000 updates into a log before)."""

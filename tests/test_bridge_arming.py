@@ -10,6 +10,8 @@ from test_bridge_gcs import BridgeThread, Gcs, mavutil
 
 from rov_mav.model.vehicle_faults import parse_vehicle_faults
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 mav = mavutil.mavlink
 SPEEDUP = 10.0
 QUIET = {"FS_PILOT_INPUT": 0, "FS_GCS_ENABLE": 0}

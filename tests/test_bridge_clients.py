@@ -13,6 +13,8 @@ from pathlib import Path
 import pytest
 from test_bridge_gcs import WAIT, BridgeProcess
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 MAVPROXY = str(Path(sys.executable).with_name("mavproxy.py"))
 
 

@@ -6,11 +6,14 @@ state, sane parameters and message intervals, and raised no exception handling a
 
 from __future__ import annotations
 
+import pytest
 from fuzz_helpers import bridge_counters, check_vehicle, fuzz, fuzzed_bridge, read_all_params
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from run_helpers import checker
 
 from sim_bridge.params import Params
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 CHUNKS = 4000
 SEED = 9

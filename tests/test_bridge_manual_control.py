@@ -10,6 +10,8 @@ import pytest
 from test_bridge_gcs import BridgeThread, Gcs, mavutil
 from test_bridge_protocol import SPEEDUP, use_passthrough, wait_servo
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 mav = mavutil.mavlink
 NEUTRAL = (0, 0, 500, 0)
 

@@ -9,6 +9,7 @@ import os
 import time
 
 os.environ["MAVLINK20"] = "1"
+import pytest  # noqa: E402
 from pymavlink import mavutil  # noqa: E402
 from sitl_helpers import Sitl  # noqa: E402
 from test_bridge_gcs import WAIT, BridgeThread  # noqa: E402
@@ -162,6 +163,7 @@ def exchange(client: MissionClient) -> dict:
     return out
 
 
+@pytest.mark.process
 def test_the_bridge_keeps_a_mission_as_ardusub_does():
     with BridgeThread(speedup=10.0) as bridge:
         client = MissionClient(f"udpout:127.0.0.1:{bridge.port}")
@@ -172,6 +174,7 @@ def test_the_bridge_keeps_a_mission_as_ardusub_does():
         assert bridge.bridge.handler_errors == 0
 
 
+@pytest.mark.process
 def test_ardusub_sitl_keeps_a_mission_as_the_bridge_expects(tmp_path):
     with Sitl(tmp_path / "sitl", speedup=2.0) as sitl:
         sitl.wait_for_port(sitl.port0)

@@ -79,6 +79,7 @@ def test_acro_yaw_stick_commands_a_yaw_rate():
     assert nu[5] == pytest.approx(0.5 * math.radians(90), rel=0.2)    # P only: the dead band costs some rate
 
 
+@pytest.mark.process
 def test_alt_hold_over_mavlink_holds_depth_against_a_push():
     with BridgeThread(10.0, start_depth=3.0, environment=Environment(disturbance=np.array([0, 0, 8.0, 0, 0, 0]))) \
             as running:

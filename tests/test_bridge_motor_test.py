@@ -244,6 +244,7 @@ SPEEDUP = 2.0
 mav = mavutil.mavlink
 
 
+@pytest.mark.process
 def test_motor_test_over_udp_runs_times_out_disarms_and_cools_down():
     with BridgeThread(SPEEDUP) as running:
         gcs = Gcs(running.port, SPEEDUP, rate=5.0)

@@ -284,6 +284,7 @@ def test_the_navigation_lost_fault_still_works_on_an_aided_vehicle():
 # -- over UDP, the environment file and the command line -------------------------------------------------------
 
 
+@pytest.mark.process
 def test_a_ground_station_sees_the_sources_and_the_truth_from_their_ids():
     with BridgeThread(navigation=PRESETS["dvl+ugps"], params=QUIET) as bridge:
         gcs = Gcs(bridge.port, speedup=bridge.speedup)
@@ -321,6 +322,7 @@ def test_an_environment_file_carries_the_navigation(tmp_path):
     ("bogus", "navigation: unknown preset 'bogus' (one of ideal, none, dvl, ugps, dvl+ugps, or a YAML file)"),
     ("BAD_FILE", "outlier_probability: Input should be less than or equal to 1"),
 ])
+@pytest.mark.process
 def test_the_command_line_refuses_a_bad_navigation_in_one_line(tmp_path, arg, expected):
     if arg == "BAD_FILE":
         arg = str(tmp_path / "nav.yaml")

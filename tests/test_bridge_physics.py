@@ -13,6 +13,8 @@ from test_bridge_gcs import BridgeThread, Gcs, mavutil
 
 from rov_mav.model.thrusters import Allocator, allocation_matrix, load_t200
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 SPEEDUP = 10.0
 mav = mavutil.mavlink
 

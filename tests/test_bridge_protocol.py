@@ -53,6 +53,7 @@ def use_passthrough(gcs: Gcs) -> None:
         assert gcs.set_param(f"SERVO{n}_FUNCTION", 50 + n, mav.MAV_PARAM_TYPE_INT16).param_value == 50 + n
 
 
+@pytest.mark.process
 def test_heartbeat_is_ardusubs(gcs):
     gcs.override = [1500] * 8            # pilot input keeps the boot-time pilot failsafe away
     gcs.start_pump()
@@ -65,6 +66,7 @@ def test_heartbeat_is_ardusubs(gcs):
     assert beats == pytest.approx(times[-1] - times[0], abs=1.5)                # 1 Hz of simulated time
 
 
+@pytest.mark.process
 def test_mode_changes_and_refusals(gcs):
     ack = gcs.command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 2)
     assert ack.result == mav.MAV_RESULT_ACCEPTED
@@ -81,6 +83,7 @@ def test_mode_changes_and_refusals(gcs):
     assert gcs.recv("HEARTBEAT", cond=lambda m: m.custom_mode == 19)
 
 
+@pytest.mark.process
 def test_arm_and_disarm_are_acknowledged(gcs):
     gcs.start_pump()
     assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mav.MAV_RESULT_ACCEPTED
@@ -91,6 +94,7 @@ def test_arm_and_disarm_are_acknowledged(gcs):
     assert gcs.command(12345).result == mav.MAV_RESULT_UNSUPPORTED
 
 
+@pytest.mark.process
 def test_parameters_list_read_set(gcs):
     gcs.send("param_request_list", 1, 1)
     values = {}
@@ -118,6 +122,7 @@ def test_parameters_list_read_set(gcs):
     assert gcs.recv("PARAM_VALUE").param_id == "FS_PILOT_TIMEOUT"
 
 
+@pytest.mark.process
 def test_firmware_45_parameter_names():
     with BridgeThread(SPEEDUP, firmware="4.5") as b:
         g = Gcs(b.port, SPEEDUP)
@@ -131,6 +136,7 @@ def test_firmware_45_parameter_names():
             g.close()
 
 
+@pytest.mark.process
 def test_overrides_from_another_sysid_are_ignored(bridge, gcs):
     use_passthrough(gcs)
     gcs.start_pump()
@@ -147,6 +153,7 @@ def test_overrides_from_another_sysid_are_ignored(bridge, gcs):
         intruder.close()
 
 
+@pytest.mark.process
 def test_passthrough_ignores_arming_and_holds_after_overrides_stop(gcs):
     assert gcs.set_param("FS_PILOT_INPUT", 0, mav.MAV_PARAM_TYPE_INT8).param_value == 0
     use_passthrough(gcs)
@@ -160,6 +167,7 @@ def test_passthrough_ignores_arming_and_holds_after_overrides_stop(gcs):
     assert all(servo(m) == [1600, 1600, 1400, 1400, 1550, 1550, 1450, 1450] for m in msgs)
 
 
+@pytest.mark.process
 def test_pilot_input_failsafe_disarms_neutralises_1_to_6_and_leaves_7_8_running(gcs):
     use_passthrough(gcs)
     gcs.override = [1600, 1600, 1500] + [1600] * 5       # the throttle at its trim: 4.7 arms only so
@@ -180,6 +188,7 @@ def test_pilot_input_failsafe_disarms_neutralises_1_to_6_and_leaves_7_8_running(
     assert servo(gcs.recv("SERVO_OUTPUT_RAW", cond=lambda m: m.time_usec / 1e6 > later + 5))[6:] == [1600, 1600]
 
 
+@pytest.mark.process
 def test_gcs_failsafe_disarms_after_its_timeout(gcs):
     assert gcs.set_param("FS_PILOT_INPUT", 0, mav.MAV_PARAM_TYPE_INT8).param_value == 0
     gcs.start_pump()
@@ -195,6 +204,7 @@ def test_gcs_failsafe_disarms_after_its_timeout(gcs):
     gcs.recv("STATUSTEXT", cond=lambda m: m.text == "MYGCS: 255, heartbeat lost", timeout=WAIT + 30 / SPEEDUP)
 
 
+@pytest.mark.process
 def test_overrides_alone_keep_the_gcs_failsafe_away(gcs):
     assert gcs.set_param("FS_PILOT_INPUT", 0, mav.MAV_PARAM_TYPE_INT8).param_value == 0
     gcs.override = [1500] * 8
@@ -214,6 +224,7 @@ def rate(msgs, kind: str) -> float:
     return (len(times) - 1) / (times[-1] - times[0])
 
 
+@pytest.mark.process
 def test_default_rates_and_requested_intervals(gcs):
     gcs.start_pump()
     msgs = gcs.collect(1.5)
@@ -237,6 +248,7 @@ def test_default_rates_and_requested_intervals(gcs):
     assert (interval.interval_us, ack.result) == (20000, mav.MAV_RESULT_ACCEPTED)
 
 
+@pytest.mark.process
 def test_requested_messages(gcs):
     ack = gcs.command(mav.MAV_CMD_REQUEST_MESSAGE, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     assert ack.result == mav.MAV_RESULT_ACCEPTED
@@ -254,6 +266,7 @@ def test_requested_messages(gcs):
     assert gcs.command(mav.MAV_CMD_REQUEST_MESSAGE, 9999).result == mav.MAV_RESULT_FAILED
 
 
+@pytest.mark.process
 def test_telemetry_contents_at_rest():
     with BridgeThread(SPEEDUP, start_depth=2.0, origin=(47.5, -122.25, 10.0)) as b:
         g = Gcs(b.port, SPEEDUP)
@@ -281,6 +294,7 @@ def test_telemetry_contents_at_rest():
             g.close()
 
 
+@pytest.mark.process
 def test_several_links_at_once_udpout_udpin_tcpin(tmp_path):
     watch_port, tcp_port = free_port(), free_port(socket.SOCK_STREAM)
     watch = mavutil.mavlink_connection(f"udpin:127.0.0.1:{watch_port}")       # a ground station on its port
@@ -318,6 +332,7 @@ def test_several_links_at_once_udpout_udpin_tcpin(tmp_path):
                 tcp.close()
 
 
+@pytest.mark.process
 def test_port_in_use_and_bad_address_are_one_line_errors():
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
         taken.bind(("127.0.0.1", 0))
@@ -341,6 +356,7 @@ def test_bad_addresses_are_one_line_errors(capsys):
     assert capsys.readouterr().err.strip() == "rov-mav sim-bridge: error: unknown parameter NO_SUCH_PARAM"
 
 
+@pytest.mark.process
 def test_stops_cleanly_on_ctrl_c(tmp_path):
     with BridgeProcess(tmp_path) as b:             # (and on SIGTERM: every BridgeProcess ends with one)
         g = Gcs(b.port, SPEEDUP)
@@ -351,6 +367,7 @@ def test_stops_cleanly_on_ctrl_c(tmp_path):
     assert "sim-bridge: stopped at t=" in b.output and "Traceback" not in b.output
 
 
+@pytest.mark.process
 def test_help_explains_every_option():
     r = subprocess.run([ROV_MAV, "sim-bridge", "--help"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0

@@ -12,6 +12,8 @@ import pytest
 from test_bridge_gcs import BridgeThread, Gcs
 from test_bridge_protocol import SPEEDUP
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 WATCH = 1.0         # wall s a listener watches for what must not arrive (10 vehicle s at SPEEDUP)
 
 

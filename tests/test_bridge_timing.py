@@ -10,6 +10,8 @@ import time
 import pytest
 from test_bridge_gcs import BridgeProcess, BridgeThread, Gcs, mavutil
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 mav = mavutil.mavlink
 
 

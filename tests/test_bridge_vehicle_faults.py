@@ -477,6 +477,7 @@ def connect(b: BridgeThread) -> Gcs:
     return g
 
 
+@pytest.mark.process
 def test_udp_leak_with_fs_leak_enable_2_surfaces_an_armed_vehicle_and_it_rises(leaking):
     gcs = connect(leaking)
     try:
@@ -492,6 +493,7 @@ def test_udp_leak_with_fs_leak_enable_2_surfaces_an_armed_vehicle_and_it_rises(l
         gcs.close()
 
 
+@pytest.mark.process
 def test_udp_reboot_time_goes_back_after_the_silence_and_the_vehicle_boots_disarmed():
     with BridgeThread(speedup=SPEEDUP, params=QUIET, vehicle_faults=faults("reboot@25s")) as b:
         gcs = connect(b)
@@ -513,6 +515,7 @@ def test_udp_reboot_time_goes_back_after_the_silence_and_the_vehicle_boots_disar
             gcs.close()
 
 
+@pytest.mark.process
 def test_udp_preflight_reboot_command_is_acked_then_the_vehicle_reboots():
     with BridgeThread(speedup=SPEEDUP, params=QUIET) as b:
         gcs = connect(b)
@@ -525,6 +528,7 @@ def test_udp_preflight_reboot_command_is_acked_then_the_vehicle_reboots():
             gcs.close()
 
 
+@pytest.mark.process
 def test_tcp_clients_are_dropped_at_a_reboot():
     port = free_port(socket.SOCK_STREAM)
     config = BridgeConfig(endpoints=(f"tcpin:127.0.0.1:{port}",), speedup=SPEEDUP, params=QUIET,
@@ -548,6 +552,7 @@ def test_tcp_clients_are_dropped_at_a_reboot():
         bridge.stop()
 
 
+@pytest.mark.process
 def test_udp_navigation_lost_stops_local_position_ned():
     with BridgeThread(speedup=SPEEDUP, params=QUIET, vehicle_faults=faults("navigation-lost@1s")) as b:
         gcs = connect(b)
@@ -561,6 +566,7 @@ def test_udp_navigation_lost_stops_local_position_ned():
             gcs.close()
 
 
+@pytest.mark.process
 def test_udp_depth_sensor_failure_texts_and_leaves_alt_hold_for_manual():
     with BridgeThread(speedup=SPEEDUP, params=QUIET, start_depth=2.0, vehicle_faults=faults("depth-sensor@20s")) as b:
         gcs = connect(b)
@@ -576,6 +582,7 @@ def test_udp_depth_sensor_failure_texts_and_leaves_alt_hold_for_manual():
 # -- the command line ------------------------------------------------------------------------------------------
 
 
+@pytest.mark.process
 def test_cli_vehicle_faults_are_announced_and_malformed_ones_are_one_line_errors(tmp_path):
     r = subprocess.run([ROV_MAV, "sim-bridge", "--vehicle-faults", "thruster=9:dead@1s"], capture_output=True,
                        text=True, timeout=60)
@@ -593,6 +600,7 @@ def test_cli_vehicle_faults_are_announced_and_malformed_ones_are_one_line_errors
     assert "sim-bridge: 1 reboot(s)" in b.output
 
 
+@pytest.mark.process
 def test_help_explains_the_vehicle_faults():
     r = subprocess.run([ROV_MAV, "sim-bridge", "--help"], capture_output=True, text=True, timeout=60)
     for words in ("--vehicle-faults", "navigation-lost@T[+D]", "FS_LEAK_ENABLE", "SURFACE", "ArduPilot Ready"):

@@ -72,6 +72,7 @@ def test_bad_mission_file(tmp_path, change, pattern):
         load_mission(write(tmp_path, "m.yaml", data))
 
 
+@pytest.mark.process
 def test_bad_mission_exits_nonzero_with_one_line_and_writes_nothing(tmp_path):
     data = square_data()
     data["path"][0]["speed"] = -1

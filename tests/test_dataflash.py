@@ -32,6 +32,7 @@ def _arm(gcs: Gcs, arm: bool) -> None:
     gcs.recv("HEARTBEAT", cond=lambda m: m.get_srcSystem() == 1 and bool(m.base_mode & 128) == arm)
 
 
+@pytest.mark.process
 def test_an_armed_dive_is_logged_as_ardusub_logs_it_and_pymavlink_reads_it(tmp_path):
     with BridgeThread(SPEEDUP, start_depth=2.0, params=QUIET, log_dir=str(tmp_path)) as b:
         gcs = Gcs(b.port, SPEEDUP)
@@ -70,6 +71,7 @@ def test_an_armed_dive_is_logged_as_ardusub_logs_it_and_pymavlink_reads_it(tmp_p
     assert len({tuple(getattr(m, f"C{i}") for i in range(5, 9)) for m in rcou}) > 1   # the vertical ones pitch
 
 
+@pytest.mark.process
 def test_a_new_file_per_arming_with_dsrmrot_and_per_boot_with_log_disarmed(tmp_path):
     rotate, per_boot = tmp_path / "rotate", tmp_path / "boot"
     with BridgeThread(SPEEDUP, params={**QUIET, "LOG_FILE_DSRMROT": 1}, log_dir=str(rotate)) as b:
@@ -154,6 +156,7 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
     assert not report.damaged and report.power_off_tail                  # the cut record: a power-off's, not damage
 
 
+@pytest.mark.process
 def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):
     """The log the arming opens is /dev/full, which takes no byte: the first flush fails; the bridge says so once
     and goes on, and closes without a second complaint."""
@@ -175,6 +178,7 @@ def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_
     assert err.count("the on-board log stopped") == 1 and log.failed and log.file is None
 
 
+@pytest.mark.process
 def test_the_targets_logged_are_those_the_vehicle_holds_and_the_review_measures_them(tmp_path):
     # MANUAL holds nothing: ATT's Des* and CTUN's DAlt are NaN. ALT_HOLD holds the depth it had on entry and a level
     # attitude with the sticks centred, as ArduSub's controllers log their targets.

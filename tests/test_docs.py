@@ -43,6 +43,7 @@ def site(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.process
 def test_builds_without_warnings(site):
     assert (site / "index.html").is_file()
     assert (site / "first-dive.html").is_file()
@@ -72,6 +73,7 @@ def _parsed(path: Path) -> _Links:
     return parser
 
 
+@pytest.mark.process
 def test_internal_links_resolve(site):
     broken = []
     pages = sorted(site.rglob("*.html"))
@@ -98,6 +100,7 @@ def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.Argument
     return dict(action.choices)
 
 
+@pytest.mark.process
 def test_reference_has_every_subcommand_and_option(site):
     text = (site / "reference" / "cli.html").read_text(encoding="utf-8")
     text = re.sub(r"<[^>]+>", " ", text).replace("&#8212;", "--")
@@ -184,6 +187,7 @@ def _not_blank(png: Path) -> bool:
 PAGES = ["index.html", "first-dive.html", "explanation/model-and-law.html", "reference/cli.html"]
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("page", PAGES)
 def test_pages_render_in_a_browser(page, served, browser, tmp_path):
     browser.get(f"{served}/{page}")

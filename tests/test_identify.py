@@ -405,6 +405,7 @@ limits: {max_depth: 3.0, max_tracking_error: 1.0, max_thrust: 40.0}
 """
 
 
+@pytest.mark.process
 def test_over_the_bridge(tmp_path, capsys):
     """The user's path: `rov-mav sim-bridge --vehicle plant.yaml` as the vehicle, `rov-mav run --log` flying an
     excitation against it over UDP, `rov-mav identify` on that log, and its file back through --vehicle.

@@ -215,6 +215,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([ROV_MAV, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("command", ["simulate", "run", "tune"])
 def test_a_refused_plan_stops_every_command_before_anything_starts(tmp_path, command):
     path = write_plan(tmp_path / "above.plan", [waypoint(1, *CORNERS[0], -2.0), waypoint(2, *CORNERS[1], 1.5)])
@@ -227,6 +228,7 @@ def test_a_refused_plan_stops_every_command_before_anything_starts(tmp_path, com
     assert not (tmp_path / "out").exists()                     # nothing half-written
 
 
+@pytest.mark.process
 def test_run_refuses_a_plan_deeper_than_max_depth_before_anything_moves(tmp_path):
     r = _cli("run", str(_waypoints_plan(tmp_path)), "--max-depth", "3", "--rerun", "off", cwd=tmp_path)
     assert r.returncode == 2
@@ -234,6 +236,7 @@ def test_run_refuses_a_plan_deeper_than_max_depth_before_anything_moves(tmp_path
     assert "built-in vehicle" not in r.stdout
 
 
+@pytest.mark.process
 def test_simulate_flies_the_shipped_survey_plan(tmp_path):
     metrics_path = tmp_path / "metrics.json"
     r = _cli("simulate", str(MISSIONS / "under_ice_survey.plan"), "--rerun", "off", "--out", str(tmp_path / "fig"),
@@ -250,6 +253,7 @@ def test_simulate_flies_the_shipped_survey_plan(tmp_path):
 
 @pytest.mark.parametrize("args", [["--mission-from-vehicle"], [], ["square", "--mission-from-vehicle",
                                                                     "--target", "udp:127.0.0.1:14550"]])
+@pytest.mark.process
 def test_run_wants_one_mission_source_and_a_vehicle_to_download_from(tmp_path, args):
     r = _cli("run", *args, "--rerun", "off", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr

@@ -4,7 +4,10 @@ and leaves it as found. Against a bridge process, watched from another link."""
 
 from __future__ import annotations
 
+import pytest
 from run_helpers import bridge_with_checker, checker, runner_against, servo_functions_16, short_mission, watch_run
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 
 def test_a_refused_arming_is_quoted_and_the_vehicle_left_as_found(tmp_path):

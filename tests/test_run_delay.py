@@ -20,6 +20,8 @@ import pytest
 from conftest import ROOT
 from run_helpers import RunnerProcess, assert_left_safe, bridge_with_checker, checker, short_mission
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 DELAY_SPEEDUP = 4.0
 
 

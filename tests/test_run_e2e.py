@@ -8,6 +8,7 @@ import json
 import os
 from pathlib import Path
 
+import pytest
 import yaml
 
 os.environ["MAVLINK20"] = "1"
@@ -20,6 +21,8 @@ from run_helpers import (  # noqa: E402
     checker,
     servo_outputs,
 )
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 SQUARE = str(MISSIONS / "square.yaml")
 STEADY_RMS_LIMIT = 0.05       # m

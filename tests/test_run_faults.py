@@ -26,6 +26,8 @@ from run_helpers import (
 )
 from test_bridge_gcs import Gcs, mavutil
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_mid_mission_leaves_the_vehicle_safe(tmp_path, signum):

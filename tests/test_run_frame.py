@@ -32,6 +32,7 @@ HEAVY_FILE = "BlueROV2 Heavy"
     (["FRAME_CONFIG=1"], ("--output", "motor-test"), "FRAME_CONFIG 1 (VECTORED, 6 motors)"),
     (["FRAME_CONFIG=1"], ("--controller", "ardusub-guided"), "FRAME_CONFIG 1 (VECTORED, 6 motors)"),
 ], ids=["standard-bluerov2", "mount-on-output-8", "motor-doubled", "motor-test", "guided"])
+@pytest.mark.process
 def test_another_vehicle_is_refused_in_one_line_and_left_untouched(tmp_path, params, output, said):
     mission = short_mission(tmp_path, goto_x=1.0, hold=1.0)
     bridge, port = bridge_with_checker(tmp_path, *[a for p in params for a in ("--param", p)])
@@ -49,6 +50,7 @@ def test_another_vehicle_is_refused_in_one_line_and_left_untouched(tmp_path, par
         assert int(gcs.get_param("MAV_GCS_SYSID").param_value) == 255
 
 
+@pytest.mark.process
 def test_motors_moved_to_outputs_9_to_16_fly_and_only_those_outputs_are_touched(tmp_path):
     """A Heavy wired to outputs 9..16 (1..8 unassigned): the run switches SERVO9..16 to RCIN1..8 passthrough, flies
     and restores them; SERVO1..8 are never written and never pulse."""
@@ -73,6 +75,7 @@ def test_motors_moved_to_outputs_9_to_16_fly_and_only_those_outputs_are_touched(
         assert [getattr(out, f"servo{n}_raw") for n in range(9, 17)] == [1500] * 8
 
 
+@pytest.mark.process
 def test_a_dry_run_reads_the_frame_and_outputs_and_says_them(tmp_path):
     mission = short_mission(tmp_path, goto_x=1.0, hold=1.0)
     bridge, port = bridge_with_checker(tmp_path)

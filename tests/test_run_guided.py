@@ -8,6 +8,7 @@ import json
 import subprocess
 from pathlib import Path
 
+import pytest
 from pymavlink import mavutil
 from run_helpers import (
     ROV_MAV,
@@ -20,6 +21,8 @@ from run_helpers import (
 )
 
 from rov_mav.flight.link import GUIDED, MANUAL
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 SPEEDUP = 5.0                  # the 60 s square plus its lead-in in about 15 s of wall time
 RMS_LIMIT = 0.25               # m: measured 0.16 (ArduSub's gains on the bridge's BlueROV2, the square's current)

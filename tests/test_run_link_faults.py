@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 import socket
 
+import pytest
 from run_helpers import (
     RUN_WAIT,
     RunnerProcess,
@@ -15,6 +16,8 @@ from run_helpers import (
     checker,
     short_mission,
 )
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 FAULTS_AT = 40.0          # vehicle s: when a cut or a dropped type starts (the runner is armed by 7-20 s)
 

@@ -46,6 +46,7 @@ def _flying(gcs, functions: list[int]) -> None:
     assert servo_functions(gcs) == functions
 
 
+@pytest.mark.process
 def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(tmp_path):
     """A mission flown on the motors' own routing (no parameter changed), then a second right after it: ArduSub ends
     every test by its timeout (a disarm does not end it) and refuses a new one for 10 s after, so the second run
@@ -82,6 +83,7 @@ def test_motor_test_flies_missions_back_to_back_and_leaves_the_vehicle_as_found(
     assert "disarmed (confirmed by HEARTBEAT)" in run.output and "motor test no longer sent" in run.output
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("output", ["motor-test", "thrusters"])
 def test_a_run_killed_outright(tmp_path, output):
     """SIGKILL mid-mission, nothing said to the vehicle. motor-test: ArduSub ends the test ("Motor test timed
@@ -147,6 +149,7 @@ def test_a_review_reads_motor_tests_as_rows_and_skips_what_ardusub_would_not_app
     assert pwm.tolist() == [[1500 + 10 * i for i in range(8)], [1500 + 10 * i for i in range(7)] + [1600]]
 
 
+@pytest.mark.process
 def test_a_disarm_by_another_station_mid_test_stops_the_run_sending_at_once(tmp_path):
     """Another station disarms the vehicle mid-run. A disarmed ArduSub keeps the last test PWMs on the thrusters and
     every further DO_MOTOR_TEST, refused, keeps the test alive (ArduSub/motors.cpp): the run must fall silent the

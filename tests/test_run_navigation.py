@@ -14,6 +14,8 @@ import pytest
 
 from run_helpers import ROV_MAV, RunnerProcess
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 MISSION = """name: navtest
 start: {position: [0.0, 0.0, 1.0], heading: 0.0}
 path:

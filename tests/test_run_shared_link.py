@@ -8,6 +8,7 @@ import re
 import time
 from contextlib import contextmanager
 
+import pytest
 from mavlink_hub import Hub
 from run_helpers import (
     SPEEDUP,
@@ -23,6 +24,8 @@ from run_helpers import (
     short_mission,
 )
 from test_bridge_gcs import Gcs
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 HANDOVER_LIMIT = 0.5          # vehicle s from a driver seen to the vehicle handed over
 

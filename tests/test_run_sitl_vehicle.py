@@ -8,8 +8,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from pymavlink import mavutil
 from run_helpers import BridgeProcess, RunnerProcess, short_mission
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 SITL_VEHICLE = str(Path(__file__).resolve().parents[1] / "vehicles" / "ardusub_sitl.yaml")
 SPEEDUP = 5.0

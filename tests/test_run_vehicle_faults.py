@@ -22,6 +22,8 @@ from run_helpers import (
     short_mission,
 )
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 FAULT_AT = 110.0        # vehicle s after the bridge starts: the run is flying by then (it takes ~40 s to start)
 LONG = 30.0             # m of the mission's leg: 150 s of mission at 0.2 m/s, flying through FAULT_AT
 

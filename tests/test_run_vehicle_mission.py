@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from plan_helpers import HOME, NAV_TAKEOFF, simple_item, waypoint, wpl, write_plan
 from run_helpers import (
     RunnerProcess,
@@ -20,6 +21,8 @@ from run_helpers import (
 from test_bridge_clients import MAVPROXY, Console
 
 from rov_mav.mission.loader import load
+
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
 # 4 m north, 4 m east and 1 m deeper, back west; 3 s holds; no yaw (ArduSub would not keep one).
 ITEMS = [waypoint(1, 47.3977419, 8.5455940, -2.0),

@@ -164,6 +164,7 @@ def _intrude(port: int, key: bytes | None, seconds: float) -> int:
     return sent
 
 
+@pytest.mark.process
 def test_a_signed_run_flies_while_stations_with_the_wrong_key_or_none_are_ignored(tmp_path):
     mission = short_mission(tmp_path, hold=20.0)
     bridge, (run_port, intruder_port) = _signing_bridge(tmp_path, "--start-depth", "1", "--signing-passphrase",
@@ -187,6 +188,7 @@ def test_a_signed_run_flies_while_stations_with_the_wrong_key_or_none_are_ignore
     assert "signing turned off" not in bridge.output
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("vehicle_key", [None, "another passphrase"])
 def test_a_run_with_a_key_refuses_a_vehicle_that_does_not_sign_with_it(tmp_path, vehicle_key):
     args = ("--signing-passphrase", vehicle_key) if vehicle_key else ()
@@ -213,6 +215,7 @@ def test_a_run_with_a_key_refuses_a_vehicle_that_does_not_sign_with_it(tmp_path,
 # -- MAVProxy's signing commands -----------------------------------------------------------------------------
 
 
+@pytest.mark.process
 def test_mavproxy_signing_key_and_setup_against_the_bridge(tmp_path):
     # real time: MAVProxy sends its GCS heartbeat at 1 Hz of wall time
     bridge, (mavproxy_port, station_port) = _signing_bridge(tmp_path, "--signing-passphrase", PASSPHRASE,

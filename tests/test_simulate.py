@@ -132,6 +132,7 @@ def test_diverging_run_ends_early_with_a_large_finite_cost(vehicle, line):
     assert cost[0] == loop_kernel.DIVERGED_COST and steps[0] == len(trace.t) - 1
 
 
+@pytest.mark.process
 def test_simulate_command_writes_metrics_and_figures(tmp_path):
     out = tmp_path / "run"
     metrics = tmp_path / "m.json"

@@ -16,6 +16,8 @@ from sitl_helpers import SPEEDUP, Checker, Sitl
 
 from rov_mav.review.logdir import read_ticks
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 RATE = 50.0                    # Hz: run's default --rate
 POSITION_WAIT = 120.0          # wall s for the EKF's first position on a loaded machine
 SITL_VEHICLE = Path(__file__).resolve().parents[1] / "vehicles" / "ardusub_sitl.yaml"

@@ -7,6 +7,8 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 # Written in pieces so that this file does not match itself.
 OUTSIDE = ("../" + "shared", "/" + "work/", "DESIGN" + ".md")
@@ -36,11 +38,13 @@ def references_outside(path: Path) -> list[str]:
             if any(pattern in line for pattern in OUTSIDE)]
 
 
+@pytest.mark.process
 def test_the_file_list_is_the_repository():
     files = {p.relative_to(ROOT).as_posix() for p in tracked_files()}
     assert {"pyproject.toml", "rov_mav/cli.py", "tests/test_standalone.py"} <= files
 
 
+@pytest.mark.process
 def test_no_file_points_outside_the_repository():
     offenders = {}
     for path in tracked_files():

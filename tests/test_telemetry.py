@@ -31,6 +31,8 @@ from rov_mav.model.thrusters import Allocator
 from rov_mav.offline.simulation import simulate
 from rov_mav.telemetry import entities as e
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 SIMULATED = {e.VEHICLE, e.TRAIL, e.REFERENCE_NOW, e.ARROWS, *e.POSE, e.POSITION_ERROR, e.ATTITUDE_ERROR, e.SLIDING,
              e.FORCE, e.MOMENT, e.DISTURBANCE_FORCE, e.DISTURBANCE_MOMENT, e.GAMMA_TRANSLATION, e.GAMMA_ROTATION,
              e.THRUST, e.PWM, e.EVENTS}

@@ -29,8 +29,8 @@ from rov_mav.telemetry import entities as e
 ARTIFACT = ROOT / "out" / "test-artifacts" / "rerun_live.png"
 VULKAN_DRIVERS = glob.glob("/usr/share/vulkan/icd.d/*.json") + glob.glob("/etc/vulkan/icd.d/*.json")
 
-pytestmark = pytest.mark.skipif(
-    not VULKAN_DRIVERS, reason="no Vulkan driver for the headless viewer: apt-get install mesa-vulkan-drivers")
+pytestmark = [pytest.mark.process, pytest.mark.skipif(
+    not VULKAN_DRIVERS, reason="no Vulkan driver for the headless viewer: apt-get install mesa-vulkan-drivers")]
 
 
 @pytest.fixture

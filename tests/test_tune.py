@@ -171,6 +171,7 @@ def test_tuned_gains_beat_a_poor_starting_set(vehicle, line, fuzzy):
     assert problem.trace_cost(trace) == pytest.approx(result.best_cost, rel=1e-9)
 
 
+@pytest.mark.process
 def test_dask_local_cluster_gives_the_in_process_result(vehicle, line, fuzzy):
     from rov_mav.offline.cluster import DaskBackend
 

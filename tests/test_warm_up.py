@@ -9,6 +9,8 @@ import sys
 
 import pytest
 
+pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
+
 PROBE = """
 from rov_mav.control.controller import Controller, load_settings
 from rov_mav.flight.actuation import Actuation
