@@ -69,8 +69,15 @@ def test_a_runner_frozen_past_the_pilot_input_timeout_finds_the_vehicle_disarmed
         finally:
             gcs.close()
     stop = next(line for line in run.output.splitlines() if "stopping:" in line)
-    assert "it said just before: 'Lost manual control'" in stop, stop     # its disarm, or its rewritten outputs,
-    assert "station is writing" not in stop                               # whichever the run reads first
+    # Its disarm, or its rewritten outputs, whichever the run reads first, quoting the vehicle's words when they
+    # reached it: 4 s of telemetry at 2x overflows the frozen run's UDP socket, which keeps the oldest datagrams, so
+    # the text may be lost with the rest, and what the run reads first on waking is that 4 s old backlog (seen in
+    # CI: it stopped blaming the link, "a link this slow cannot fly the mission").
+    if "vehicle: Lost manual control" in run.output:
+        assert "it said just before: 'Lost manual control'" in stop, stop
+    else:
+        assert "the vehicle was disarmed during the run" in stop, stop
+    assert "station is writing" not in stop and "link this slow" not in stop, stop
 
 
 def _aborted_and_left_safe(tmp_path, mission, bridge_args: tuple[str, ...], *runner_args: str) -> str:

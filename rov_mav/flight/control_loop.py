@@ -116,16 +116,32 @@ class FlightLoop:
                 raise LinkLost(f"link lost: no telemetry from the vehicle for {age:.1f} s of vehicle time "
                                f"(limit {o.link_timeout:g} s)")
             if age > stale_after and not self.stale:
-                self.stale = True
-                self.stale_episodes += 1
-                if not o.dry_run:
-                    io.send_neutral()
-                    self.output.on_stale()
-                if self.stale_episodes <= STALE_REPORTS:
-                    more = " (further episodes are counted in the final report)" \
-                        if self.stale_episodes == STALE_REPORTS else ""
-                    io.say(f"telemetry stale ({age * 1e3:.0f} ms): neutral on all thrusters until it returns"
-                           + more, "warning")
+                self._go_stale(age)
+
+    def _go_stale(self, age: float) -> None:
+        """Telemetry `age` vehicle s old: neutral on every thruster until it returns (said for the first episodes)."""
+        io = self.io
+        self.stale = True
+        self.stale_episodes += 1
+        if not self.options.dry_run:
+            io.send_neutral()
+            self.output.on_stale()
+        if self.stale_episodes <= STALE_REPORTS:
+            more = " (further episodes are counted in the final report)" if self.stale_episodes == STALE_REPORTS else ""
+            io.say(f"telemetry stale ({age * 1e3:.0f} ms): neutral on all thrusters until it returns" + more,
+                   "warning")
+
+    def _backlog(self, state: State, now: float) -> bool:
+        """A state older than the prediction reaches, read right after this process's own stall: the stall's backlog
+        (a UDP socket that overflowed keeps its oldest datagrams and drops the newest), not a slow link. Neutral until
+        fresh telemetry comes, as for stale telemetry; the link's timeout still stands."""
+        if self.predictor is None or self._resumed is None or now - self._resumed > MAX_HORIZON:
+            return False
+        if now + self.io.session.round_trip.seconds - state.t <= MAX_HORIZON:
+            return False
+        if not self.stale:
+            self._go_stale(now - state.t)
+        return True
 
     def _due(self, age: float, stale_after: float) -> bool:
         """A command is due between two samples: the prediction is on, the last state is not stale, and a command
@@ -255,6 +271,8 @@ class FlightLoop:
             if self.lead_in is not None:
                 io.say(f"lead-in to the mission's start pose: {self.lead_in.duration:.1f} s")
             self._prev_tick = now - self.period
+        if self._backlog(state, now):
+            return False
         fresh = state.t != self._last_state_t      # a new sample, not the last one carried further
         self._last_state_t = state.t
         if self.stale:
