@@ -1,15 +1,15 @@
 """Shared fixtures: the shipped vehicle, random states, the repository's paths; and the `process` marker.
 
 A test that starts a process (any subprocess: a runner, a bridge, MAVProxy, a browser; a multiprocessing worker) or
-the bridge in-process (a real-time loop on real sockets) is marked `process`; `make test-fast` runs the others. The marks are held to what
-the tests do: an unmarked test that starts either fails, saying so.
+the bridge in-process (a real-time loop on real sockets) is marked `process`; `make test-fast` runs the others. The
+marks are held to what the tests do: an unmarked test that starts either fails, saying so.
 """
 
 from __future__ import annotations
 
 import multiprocessing.process
-import os
 import subprocess
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +22,6 @@ MISSIONS = ROOT / "missions"
 
 
 PROCESS = "process"
-RECORD = os.environ.get("ROVMAV_RECORD_PROCESS_TESTS")    # a file: list the unmarked tests that start one, there
 
 
 class StartsAProcess(RuntimeError):
@@ -46,42 +45,23 @@ def pytest_runtest_call(item):
         yield
 
 
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_makereport(item, call):
-    outcome = yield
-    if RECORD and call.excinfo is not None and call.excinfo.errisinstance(StartsAProcess):
-        with open(RECORD, "a") as f:
-            f.write(item.nodeid + "\n")
-        outcome.get_result()
+@contextmanager
+def _guarded(item):
+    """Around an unmarked test's setup and call: starting a subprocess, a multiprocessing worker or the bridge raises
+    StartsAProcess, naming the test."""
+    if item.get_closest_marker(PROCESS) is not None:
+        yield
+        return
+    from sim_bridge.server import Bridge
 
+    def refuse(*args, **kwargs):
+        raise StartsAProcess(f"{item.nodeid} starts a process or the bridge: mark it @pytest.mark.{PROCESS}")
 
-class _guarded:
-    """Around an unmarked test's setup and call: starting a subprocess or a bridge raises StartsAProcess."""
-
-    def __init__(self, item):
-        self.active = item.get_closest_marker(PROCESS) is None
-        self.nodeid = item.nodeid
-
-    def __enter__(self):
-        if not self.active:
-            return self
-        from sim_bridge.server import Bridge
-
-        nodeid = self.nodeid
-
-        def refuse(*args, **kwargs):
-            raise StartsAProcess(f"{nodeid} starts a process or the bridge: mark it @pytest.mark.{PROCESS}")
-
-        self.saved = (subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start, Bridge.start)
-        subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start, Bridge.start = refuse, refuse, refuse
-        return self
-
-    def __exit__(self, *exc):
-        if self.active:
-            from sim_bridge.server import Bridge
-
-            subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start, Bridge.start = self.saved
-        return False
+    with pytest.MonkeyPatch.context() as patch:
+        for owner, name in ((subprocess.Popen, "__init__"), (multiprocessing.process.BaseProcess, "start"),
+                            (Bridge, "start")):
+            patch.setattr(owner, name, refuse)
+        yield
 
 
 @pytest.fixture(autouse=True)

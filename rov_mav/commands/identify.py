@@ -106,15 +106,12 @@ def load_dataflash_run(path: str, mission, start: float | None, prior=None):
 
 def _same_frame(path: str, dive, prior) -> None:
     """ConfigError (one line) when the log's vehicle is on another frame than the prior (its motors would be read as
-    the wrong thrusters): FRAME_CONFIG, else the banner's "Frame:" text (`GCS_MAVLINK_Sub::send_banner`)."""
+    the wrong thrusters): FRAME_CONFIG, else the banner's "Frame:" text (`analysis.logged_frames`)."""
     from rov_mav.config import ConfigError
-    from rov_mav.model.frames import MAX_MOTORS, frame_of, frames_by_string
+    from rov_mav.model.frames import MAX_MOTORS
+    from rov_mav.review.analysis import logged_frames
 
-    if "FRAME_CONFIG" in dive.params:
-        frames = [frame_of(int(dive.params["FRAME_CONFIG"]))]
-    else:
-        banner = next((text for _, sysid, _, text in dive.texts if text.startswith("Frame:")), None)
-        frames = frames_by_string(banner.removeprefix("Frame:").strip()) if banner else []
+    frames, _ = logged_frames(dive)
     if frames and prior.frame not in frames:
         remedy = "give --vehicle a model of this frame" if frames[0].motors == MAX_MOTORS else \
             f"rov-mav's vehicle model has {MAX_MOTORS} thrusters, so this frame cannot be identified yet"

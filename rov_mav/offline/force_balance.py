@@ -39,7 +39,7 @@ was asked to reach, and the thrust a given model would need there): free of sens
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -78,9 +78,12 @@ class Run:
 def distinct(run: Run) -> Run:
     """The run with one tick per state time: of ticks that share one (a second command on the same state), the
     last, whose command is the one the vehicle held."""
-    keep = np.concatenate([np.diff(run.t) > 0, [True]])
-    return Run(run.name, *(getattr(run, f)[keep] for f in ("t", "eta", "nu", "pwm", "thrusts", "voltage", "reference",
-                                                           "age")))
+    return rows(run, np.concatenate([np.diff(run.t) > 0, [True]]))
+
+
+def rows(run: Run, keep: np.ndarray) -> Run:
+    """The run's ticks where `keep` is true."""
+    return Run(run.name, *(getattr(run, f.name)[keep] for f in fields(Run) if f.name != "name"))
 
 
 def stretches(run: Run) -> list[slice]:

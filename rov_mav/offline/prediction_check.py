@@ -17,7 +17,8 @@ import numpy as np
 from rov_mav.model.dynamics import acceleration, jacobian
 from rov_mav.model.thrusters import allocation_matrix, thruster_curve
 from rov_mav.model.vehicle import Vehicle
-from rov_mav.offline.force_balance import Run, bench_thrusts
+from rov_mav.offline.force_balance import Run, bench_thrusts, rows
+from rov_mav.units import wrap_angle
 
 HORIZON = 1.0                 # s ahead
 SPACING = 0.5                 # s between the starts of predictions
@@ -48,13 +49,8 @@ class Comparison:
 
 def split(run: Run, held_back: float = HELD_BACK) -> tuple[Run, Run]:
     """(the first part to fit, the last `held_back` of its duration to check)."""
-    cut = run.t[0] + (1.0 - held_back) * (run.t[-1] - run.t[0])
-    first = run.t < cut
-    return (Run(run.name, *(getattr(run, f)[first] for f in _FIELDS)),
-            Run(run.name, *(getattr(run, f)[~first] for f in _FIELDS)))
-
-
-_FIELDS = ("t", "eta", "nu", "pwm", "thrusts", "voltage", "reference", "age")
+    first = run.t < run.t[0] + (1.0 - held_back) * (run.t[-1] - run.t[0])
+    return rows(run, first), rows(run, ~first)
 
 
 def ahead_errors(vehicle: Vehicle, run: Run, delay: float = 0.0, horizon: float = HORIZON,
@@ -77,7 +73,7 @@ def ahead_errors(vehicle: Vehicle, run: Run, delay: float = 0.0, horizon: float 
     out = {}
     for name, i, scale in QUANTITIES:
         error = eta[:, i] - logged[:, i]
-        out[name] = scale * (np.remainder(error + np.pi, 2 * np.pi) - np.pi if i >= 3 else error)
+        out[name] = scale * (wrap_angle(error) if i >= 3 else error)
     return out
 
 

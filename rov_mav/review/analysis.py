@@ -7,13 +7,13 @@ onto them through the vehicle's timestamps (`vehicle_time`).
 
 from __future__ import annotations
 
-import numpy as np
-
 import re
+
+import numpy as np
 
 from rov_mav.flight.actuation import PWM_TOLERANCE
 from rov_mav.flight.link import CHANNELS, mode_name
-from rov_mav.model.frames import frame_of, frames_by_string
+from rov_mav.model.frames import Frame, frame_of, frames_by_string
 from rov_mav.review.dive import Dive
 
 FIRMWARE_TEXT = re.compile(r"^ArduSub V(\S+)")   # the banner's first line (`GCS_MAVLINK::send_banner`)
@@ -176,18 +176,32 @@ def dive_depth(dive: Dive) -> tuple[np.ndarray, np.ndarray, str] | None:
 
 def identity(dive: Dive) -> dict:
     """Which ArduSub, on which frame: the firmware the banner named ("ArduSub V4.1.0 (...)"), the frame by
-    FRAME_CONFIG or, without the parameter, the banner's "Frame: ..." line (`GCS_MAVLINK_Sub::send_banner`); each
-    None when the log does not say."""
-    vehicle = dive.vehicle[0] if dive.vehicle else None
-    texts = [text for _, sysid, _, text in dive.texts if sysid == vehicle]
+    FRAME_CONFIG or, without the parameter, the banner's "Frame: ..." line (`logged_frame`); each None when the log
+    does not say."""
+    texts = _vehicle_texts(dive)
     firmware = next((found.group(1) for text in texts if (found := FIRMWARE_TEXT.match(text))), None)
-    frame = None
+    frames, banner = logged_frames(dive)
     if "FRAME_CONFIG" in dive.params:
-        frame = frame_of(int(dive.params["FRAME_CONFIG"])).describe()
-    elif banner := next((text for text in texts if text.startswith("Frame:")), None):
-        named = frames_by_string(banner.removeprefix("Frame:").strip())
-        frame = f"{banner.strip()} ({named[0].motors} motors)" if named else banner.strip()
+        frame = frames[0].describe()
+    elif banner is not None:
+        frame = f"{banner} ({frames[0].motors} motors)" if frames else banner
+    else:
+        frame = None
     return {"firmware": firmware, "frame": frame}
+
+
+def logged_frames(dive: Dive) -> tuple[list[Frame], str | None]:
+    """The frames the log's vehicle may be on, and its banner's "Frame: ..." line (None without one): FRAME_CONFIG's
+    frame, else those whose frame string the banner names (`GCS_MAVLINK_Sub::send_banner`); none when neither says."""
+    banner = next((text.strip() for text in _vehicle_texts(dive) if text.startswith("Frame:")), None)
+    if "FRAME_CONFIG" in dive.params:
+        return [frame_of(int(dive.params["FRAME_CONFIG"]))], banner
+    return (frames_by_string(banner.removeprefix("Frame:").strip()) if banner else []), banner
+
+
+def _vehicle_texts(dive: Dive) -> list[str]:
+    vehicle = dive.vehicle[0] if dive.vehicle else None
+    return [text for _, sysid, _, text in dive.texts if sysid == vehicle]
 
 
 def own_sensors(dive: Dive) -> dict:

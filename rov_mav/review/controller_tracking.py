@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rov_mav.flight.link import mode_name
+from rov_mav.review.series import last_known
 
 STABILIZE, ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK = 0, 2, 3, 4, 7, 16, 21
 HOLDS = {                               # signal -> the modes (custom_mode) whose controller holds its target
@@ -73,8 +74,8 @@ def figures(stretches: list[Stretch], errors: dict[str, Errors]) -> list[dict]:
     """Per stretch whose mode holds a target the log has: each such target's RMS and largest error, and samples."""
     out = []
     for stretch in stretches:
-        held = {name: series for name, series in errors.items() if stretch.mode in HOLDS[name]}
-        entry = stretch_figures(mode_name(stretch.mode), stretch.start, stretch.end, held)
+        holding = {name: series for name, series in errors.items() if stretch.mode in HOLDS[name]}
+        entry = stretch_figures(mode_name(stretch.mode), stretch.start, stretch.end, holding)
         if entry["errors"]:
             out.append(entry)
     return out
@@ -155,8 +156,7 @@ def telemetry_errors(nav_wall: np.ndarray, nav: np.ndarray, attitude_wall: np.nd
         return {}
     out = {"depth_m": Errors(nav_wall, nav[:, 3])}
     if attitude_wall.size:
-        at = np.clip(np.searchsorted(attitude_wall, nav_wall, side="right") - 1, 0, attitude_wall.size - 1)
-        actual = np.degrees(attitude[at])
+        actual = np.degrees(last_known(attitude_wall, attitude, nav_wall))
         for i, axis in enumerate(("roll", "pitch", "yaw")):
             out[f"{axis}_deg"] = Errors(nav_wall, angle_error_deg(nav[:, i], actual[:, i]))
     return out

@@ -28,9 +28,10 @@ import numpy as np
 from rov_mav.flight.link import CHANNELS, mavlink
 from rov_mav.model.dynamics import euler_rate_matrix, rotation
 from rov_mav.review import controller_tracking, onboard
-from rov_mav.review.dataflash_records import Records, index_dataflash
+from rov_mav.review.dataflash_records import Records, first_core, index_dataflash
 from rov_mav.review.dive import Dive
 from rov_mav.review.tlog import ReadReport
+from rov_mav.units import wrap_angle
 
 VEHICLE = (1, 1)
 GCS_SYSID = 255
@@ -83,9 +84,7 @@ def read_dataflash_dive(path: str | Path, report: ReadReport) -> Dive:
 def _states(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(t, wall, eta (N, 6), nu (N, 6)): each position sample paired with the nearest attitude (see the module)."""
     empty = (np.zeros(0), np.zeros(0), np.zeros((0, 6)), np.zeros((0, 6)))
-    position, attitude = r.get("XKF1"), r.get("ATT")
-    if position is not None and "C" in position:
-        position = position.where(position["C"] == 0)
+    position, attitude = first_core(r.get("XKF1")), r.get("ATT")
     if position is None or not len(position):
         position = r.get("NKF1")
     if position is None or attitude is None or len(position) < 1 or len(attitude) < 2:
@@ -107,7 +106,7 @@ def _states(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     pos = pos + vel * (t - tp)[:, None]
     eta_att = np.concatenate([np.zeros((t.size, 3)), angles], axis=1)
     angles = angles + np.einsum("kij,kj->ki", euler_rate_matrix(eta_att), rates) * (t - ta_j)[:, None]
-    angles[:, 2] = np.remainder(angles[:, 2] + np.pi, 2 * np.pi) - np.pi
+    angles[:, 2] = wrap_angle(angles[:, 2])
     eta = np.concatenate([pos, angles], axis=1)
     body = np.einsum("kji,kj->ki", rotation(eta), vel)             # R^T v_NED
     return np.floor(t * 1e3) / 1e3, t, eta, np.concatenate([body, rates], axis=1)
@@ -126,7 +125,7 @@ def _attitude(attitude: Records | None) -> np.ndarray:
     if attitude is None:
         return np.zeros((0, 3))
     angles = np.radians(np.column_stack([attitude[k] for k in ("Roll", "Pitch", "Yaw")]))
-    angles[:, 2] = np.remainder(angles[:, 2] + np.pi, 2 * np.pi) - np.pi
+    angles[:, 2] = wrap_angle(angles[:, 2])
     return angles
 
 
@@ -146,8 +145,7 @@ def _battery(r: dict[str, Records]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     battery = r.get("BAT") if r.get("BAT") is not None else r.get("CURR")
     if battery is None:
         return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
-    instance = battery.get("Inst", np.nan) if "Inst" in battery else battery.get("Instance", 0.0)
-    battery = battery.where(np.nan_to_num(instance, nan=0.0) == 0)
+    battery = battery.where((battery["Inst"] if "Inst" in battery else battery.get("Instance", 0.0)) == 0)
     volt, curr, used = battery.get("Volt"), battery.get("Curr"), battery.get("CurrTot")
     voltage = np.where((volt > 0) & (volt * 1000 < 65535), volt, np.nan)
     current = np.where((curr >= 0) & (curr * 100 <= 32767), curr, np.nan)

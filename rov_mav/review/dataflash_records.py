@@ -69,6 +69,13 @@ class Records:
         return [_text(raw) for raw in self.columns[label]]
 
 
+def first_core(records: Records | None) -> Records | None:
+    """An EKF's records of its first core (core field C 0; a layout without the field has one core), None for none."""
+    if records is None or not len(records):
+        return None
+    return records.where(records["C"] == 0) if "C" in records else records
+
+
 def _text(raw: bytes) -> str:
     raw = raw.split(b"\0", 1)[0]
     try:

@@ -27,6 +27,7 @@ from rov_mav.review.dataflash_log import read_dataflash_dive
 from rov_mav.review.dive import Dive, DiveRecorder
 from rov_mav.review.logdir import RunFolder, column_block, read_run_folder
 from rov_mav.review.reference import mission_start, path_deviation, waypoint_path
+from rov_mav.review.series import last_known
 from rov_mav.review.tlog import ReadReport, read_tlog
 from rov_mav.telemetry.entities import TickColumns
 
@@ -190,7 +191,8 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
 def _ardusub_tracking(report: ReadReport, dive: Dive, t0: float) -> tuple[list[dict], dict]:
     """ArduSub's own controllers against the targets it logged, per armed stretch of a mode (`controller_tracking`),
     and each target's errors where a mode held it, as (review s, error); times in review seconds."""
-    end = report.last_wall if report.last_wall is not None else float(dive.heartbeat_wall[-1:].sum())
+    end = report.last_wall if report.last_wall is not None else \
+        float(dive.heartbeat_wall[-1]) if dive.heartbeat_wall.size else 0.0
     stretches = controller_tracking.armed_stretches(dive.heartbeat_wall, dive.armed, dive.mode, end)
     out = controller_tracking.figures(stretches, dive.targets)
     for entry in out:
@@ -222,8 +224,8 @@ def _path_metrics(dive: Dive, planned: np.ndarray, labels: list[str]) -> dict:
     as ArduSub starts a mission from where it is) while in AUTO (else while armed), and each waypoint's closest
     approach."""
     if dive.mode.size:
-        mode = _held(dive.heartbeat_wall, dive.mode, dive.state_wall)
-        armed = _held(dive.heartbeat_wall, dive.armed, dive.state_wall)
+        mode = last_known(dive.heartbeat_wall, dive.mode, dive.state_wall)
+        armed = last_known(dive.heartbeat_wall, dive.armed, dive.state_wall)
     else:
         mode, armed = np.zeros(dive.state_t.size, int), np.zeros(dive.state_t.size, bool)
     auto = (mode == AUTO) & armed
@@ -244,8 +246,8 @@ def _tlog_columns(dive: Dive, t: np.ndarray, t0: float, reference: np.ndarray | 
                   command_t: np.ndarray, eta: np.ndarray | None = None) -> TickColumns:
     """The states (or `eta` at times t) as ticks for Rerun; outputs, battery and link figures held at each tick."""
     eta = dive.eta if eta is None else eta
-    pwm = _held(dive.servo_t - t0, dive.servo, t) if dive.servo_t.size else None
-    voltage = _held(analysis.vehicle_time(dive, dive.power_wall) - t0, dive.voltage, t) \
+    pwm = last_known(dive.servo_t - t0, dive.servo, t) if dive.servo_t.size else None
+    voltage = last_known(analysis.vehicle_time(dive, dive.power_wall) - t0, dive.voltage, t) \
         if dive.power_wall.size else None
     age = np.diff(t, prepend=t[0])
     window = np.searchsorted(command_t - t0, t, side="right") - np.searchsorted(command_t - t0, t - 1.0)
@@ -258,7 +260,8 @@ def _attitude_columns(dive: Dive, t0: float, command_t: np.ndarray) -> TickColum
     (held; 0 without it), for the recording."""
     t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
     depth = analysis.dive_depth(dive)
-    down = _held(analysis.vehicle_time(dive, depth[0]) - t0, depth[1], t) if depth is not None else np.zeros(t.size)
+    down = last_known(analysis.vehicle_time(dive, depth[0]) - t0, depth[1], t) if depth is not None \
+        else np.zeros(t.size)
     eta = np.column_stack([np.zeros(t.size), np.zeros(t.size), down, dive.attitude])
     return _tlog_columns(dive, t, t0, None, command_t, eta)
 
@@ -275,13 +278,6 @@ def _truth_at(dive: Dive, wall: np.ndarray) -> np.ndarray:
     close = np.abs(dive.truth_wall[nearest] - wall) <= TRUTH_WALL
     out[close] = dive.truth[nearest[close]]
     return out
-
-
-def _held(t_source: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """`values` sampled at `t`, each the last known (the first before any)."""
-    order = np.argsort(t_source, kind="stable")
-    k = np.clip(np.searchsorted(t_source[order], t, side="right") - 1, 0, len(order) - 1)
-    return values[order][k]
 
 
 # -- a run's log folder ----------------------------------------------------------------------------------------

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.review.dataflash_records import Records
+from rov_mav.review.dataflash_records import Records, first_core
 
 RATIOS = {"velocity": "SV", "position": "SP", "height": "SH", "compass": "SM"}
 INNOVATIONS = {"velocity_m_s": ("IVN", "IVE", "IVD"), "position_m": ("IPN", "IPE", "IPD")}
@@ -35,14 +35,8 @@ def onboard(records: dict[str, Records]) -> dict:
     return out
 
 
-def _core0(records: Records | None) -> Records | None:
-    if records is None or not len(records):
-        return None
-    return records.where(records["C"] == 0) if "C" in records else records
-
-
 def _ekf(xkf3: Records | None, xkf4: Records | None) -> dict | None:
-    xkf3, xkf4 = _core0(xkf3), _core0(xkf4)
+    xkf3, xkf4 = first_core(xkf3), first_core(xkf4)
     if xkf3 is None and xkf4 is None:
         return None
     out: dict = {"samples": len(xkf4) if xkf4 is not None else len(xkf3)}
