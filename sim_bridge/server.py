@@ -32,7 +32,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from rov_mav.model.navigation import PRESETS as NAVIGATION_PRESETS
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
-from rov_mav.model.vehicle import load_vehicle
+from rov_mav.model.vehicle import load_flown_vehicle
 from sim_bridge import boot, telemetry
 from sim_bridge.ardusub import MAV_SEVERITY_INFO, ArduSub
 from sim_bridge.battery import Battery
@@ -78,7 +78,7 @@ class Bridge:
                              f"(0 to {len(config.endpoints) - 1})")
         if not 1 <= self.params.sysid <= 255:
             raise ValueError(f"parameter {self.params.names.sysid}: the vehicle's sysid must be 1 to 255")
-        self.vehicle = load_vehicle(config.vehicle_path)
+        self.vehicle = load_flown_vehicle(config.vehicle_path)
         self.vehicle_faults = resolve(config.vehicle_faults, config.environment)
         self.navigation = config.navigation or getattr(config.environment, "navigation", None) or \
             NAVIGATION_PRESETS["ideal"]

@@ -12,7 +12,7 @@ from conftest import MISSIONS
 
 from rov_mav.config import ConfigError
 from rov_mav.mission.missions import load_mission
-from rov_mav.model.vehicle import default_vehicle_path, load_vehicle
+from rov_mav.model.vehicle import default_vehicle_path, load_flown_vehicle, load_vehicle
 
 
 def write(tmp_path, name, data):
@@ -33,6 +33,10 @@ def vehicle_data():
     (lambda d: d.update(inertia_products=[0.5, 0.0, 0.0]), r"vehicle.yaml: .*not positive definite"),
     (lambda d: d["thrusters"]["directions"].__setitem__(0, [1.0, 1.0, 0.0]),
      r"vehicle.yaml: thrusters.directions: .*thruster 1 direction is not a unit vector"),
+    (lambda d: d["thrusters"]["directions"].pop(), r"vehicle.yaml: thrusters: .*directions lists 7 thrusters, "
+                                                   r"positions 8"),
+    (lambda d: d["thrusters"].update(per_thruster_scale=[1.0] * 6), r"per_thruster_scale lists 6 thrusters"),
+    (lambda d: d.update(frame="vectored"), r"vehicle.yaml: .*vectored has 6 motors, thrusters lists 8"),
 ])
 def test_bad_vehicle_file(tmp_path, change, pattern):
     data = vehicle_data()
@@ -45,6 +49,21 @@ def test_bad_vehicle_file(tmp_path, change, pattern):
 def test_shipped_vehicle_is_the_reference_model(vehicle):
     assert vehicle.mass == 13.5
     np.testing.assert_allclose(np.diag(vehicle.mass_matrix), [19.857, 20.621, 32.19, 0.4458, 0.3648, 0.5915])
+
+
+def test_a_six_thruster_vehicle_is_a_prior_and_refused_for_flight(tmp_path):
+    """The shipped standard BlueROV2 (FRAME_CONFIG 1): six thrusters with their own scales; what flies or simulates
+    refuses it in one line naming the file (the controller and the simulator drive eight)."""
+    path = default_vehicle_path().parent / "vehicles" / "bluerov2.yaml"
+    standard = load_vehicle(path)
+    assert standard.frame.config == 1 and standard.thruster_positions.shape == (6, 3)
+    assert standard.per_thruster_scale.shape == (6,)
+    np.testing.assert_allclose(standard.buoyancy - standard.weight, 0.2 * standard.gravity, rtol=1e-9)
+    with pytest.raises(ConfigError, match=r"bluerov2.yaml: BlueROV2 is FRAME_CONFIG 1 \(VECTORED, 6 motors\): "
+                                          r"rov-mav flies and simulates 8-thruster vehicles only") as info:
+        load_flown_vehicle(path)
+    assert "\n" not in str(info.value)
+    assert load_flown_vehicle().frame.config == 2
 
 
 def square_data():

@@ -569,3 +569,22 @@ def test_a_fit_that_is_impossible_is_not_written(clean_log, tmp_path, capsys):
     assert code == 1 and not out.exists()
     assert stderr.count("\n") == 1 and "impossible" in stderr and "shoot up" in stderr, stderr
     assert "held-back check" in stdout
+
+
+def test_dofs_left_out_keep_the_prior_and_the_rest_still_recover_the_plant(clean_log):
+    """A pilot's dive without a DVL fits heave, roll, pitch and yaw only: the surge and sway balances are left out
+    (their parameters keep the prior, saying so; no R^2), and what the other four show still comes back within 5 %.
+    The prior knows surge and sway here: their added mass acts in the others through the Coriolis terms, so a wrong
+    one held would bias them (by 10 % in heave's added mass with the shipped Heavy's against this plant)."""
+    dofs = np.array([False, False, True, True, True, True])
+    prior = load_vehicle()
+    horizontal = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    known = {name: horizontal * getattr(PLANT, name) + (1 - horizontal) * getattr(prior, name)
+             for name in ("added_mass", "linear_damping", "quadratic_damping")}
+    result = identify([load_run(str(clean_log))], replace(prior, **known), NET_BUOYANCY, dofs=dofs)
+    fitted = check_recovery(result, TOLERANCE)
+    left_out = [e for e in result.estimates if e.name.endswith((".surge", ".sway"))]
+    assert left_out and all(e.value == e.prior and "is not fitted" in e.status for e in left_out)
+    assert [e.value for e in left_out] == [truth(e.name) for e in left_out]
+    assert {"added_mass.heave", "quadratic_damping.yaw"} <= set(fitted)
+    assert [np.isnan(f.r2) for f in result.fits] == [True, True, False, False, False, False]

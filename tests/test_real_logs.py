@@ -227,6 +227,41 @@ def test_identify_on_a_standard_frames_dive_refuses_the_heavy_prior_in_one_line(
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
     assert err.count("\n") == 1 and "FRAME_CONFIG 1 (VECTORED, 6 motors)" in err and "FRAME_CONFIG 2" in err, err
+    assert "give --vehicle bluerov2)" in err
+
+
+def test_identify_on_a_pilots_dive_fits_what_it_moved_and_never_writes_a_vehicle_worse_than_its_prior(tmp_path,
+                                                                                                     capsys):
+    """The 2.5 m pilot's dive of a standard BlueROV2 (no DVL, no mission) with the shipped bluerov2 as the prior: surge
+    and sway are not fitted (the EKF has no horizontal velocity of its own), heave and yaw are (the dive went to
+    2.46 m and turned); the six motors are read from SERVO1-6 with MOT_k_DIRECTION. Whatever the fit, the check's
+    own figures decide: a vehicle is written only if it predicts depth and heading 1 s ahead on the held-back third
+    no worse than the prior and is possible; else nothing is written and one line says why."""
+    from rov_mav.commands.identify import _checked, _dofs, load_dataflash_run
+    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.offline.identification import identify
+    from rov_mav.offline.prediction_check import DECIDING, impossible
+    from rov_mav.shipped import listing
+
+    path = str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN")
+    prior = load_vehicle(next(s.path for s in listing("vehicle") if s.name == "bluerov2"))
+    run, excited = load_dataflash_run(path, None, None, prior)
+    assert [e.fitted for e in excited] == [False, False, True, True, True, True]
+    assert run.pwm.shape[1] == 6 and 175.0 < run.t[-1] - run.t[0] < 185.0        # 180.5 s armed (MANIFEST)
+    result = identify([run], prior, dofs=_dofs([excited]))
+    assert impossible(result.vehicle) is None
+    assert all(e.value == e.prior for e in result.estimates if e.name.endswith((".surge", ".sway")))
+    worse = any(c.worse for c in _checked([run], prior, None, 0.4, _dofs([excited])) if c.quantity in DECIDING)
+
+    out = tmp_path / "identified.yaml"
+    code = cli.main(["identify", path, "--vehicle", "bluerov2", "--out", str(out)])
+    printed = capsys.readouterr()
+    assert "surge  kept: no horizontal velocity in the log" in printed.out
+    if worse:
+        assert code == 1 and not out.exists() and printed.err.count("\n") == 1
+        assert "predicts worse than the prior on the held-back third" in printed.err
+    else:
+        assert code == 0 and load_vehicle(out).frame.config == 1
 
 
 def test_the_summary_says_where_time_starts_and_what_the_log_began_in(capsys, tmp_path):

@@ -101,7 +101,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.commands.common import navigation_errors, progress_bar
     from rov_mav.config import ConfigError
     from rov_mav.mission.loader import load
-    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.model.vehicle import load_flown_vehicle
     from rov_mav.offline import bench, pso, tuning
     from rov_mav.offline.scenarios import load_scenarios
 
@@ -112,7 +112,7 @@ def main(args: argparse.Namespace) -> int:
         raise ConfigError(f"--missions: two missions named '{next(n for n in names if names.count(n) > 1)}'")
     training = {m.name: load_scenarios(args.training, m.environment) for m in missions}
     held_out = {m.name: load_scenarios(args.scenarios, m.environment) for m in missions}
-    model = load_vehicle(args.vehicle)
+    model = load_flown_vehicle(args.vehicle)
     out = require_writable(args.out, folder=True, option="--out")
     particles, iterations = args.tune_budget
     options = pso.PSOOptions(particles, iterations)

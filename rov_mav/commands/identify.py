@@ -32,7 +32,13 @@ Before anything is written, the model is checked: fitted again on the first two 
 the last third one second ahead (depth, heading, roll, pitch: integrated from each logged state with the thrust the
 vehicle was sent) beside the prior. A fit that predicts depth or heading worse than the prior, or a vehicle no ROV
 can be (a mass matrix not positive definite, negative damping, buoyancy more than 25 % from the weight), is not
-written: one line says why. A DataFlash log's frame (FRAME_CONFIG, or ArduSub's "Frame:" text) must be the prior's.
+written: one line says why. A DataFlash log's frame (FRAME_CONFIG, or ArduSub's "Frame:" text) must be the prior's
+(the shipped bluerov2 is the standard six-thruster BlueROV2's, bluerov2_heavy the Heavy's).
+
+A pilot's dive (a .BIN without --mission) has no reference: its armed states are the data, the dive's own motion
+smoothed over 1 s stands in for the reference, and only the DOFs it moved are fitted (each said, with how much it
+moved); surge and sway only when the log holds a DVL's velocity (VISP/VISV), since the EKF's horizontal velocity
+without one is drift. A dive that moved nothing enough gives no model.
 """
 
 EPILOG = """\
@@ -41,6 +47,7 @@ examples:
   rov-mav identify out/identify --out my_rov.yaml
   rov-mav identify out/identify out/identify2 --net-buoyancy 2.5 --out my_rov.yaml
   rov-mav run --target tcp:127.0.0.1:5760 square --vehicle my_rov.yaml
+  rov-mav identify 00000016.BIN --vehicle bluerov2 --out my_bluerov2.yaml     (a pilot's dive)
 
 exit status: 0 written; 1 a model was fitted but not written (it predicts worse than the prior, or is impossible);
 2 bad arguments, unreadable logs, or logs that cannot give a model (nothing is written).
@@ -52,8 +59,8 @@ MAX_NET_BUOYANCY = 1000.0   # N: |buoyancy - weight| of anything a BlueROV2's th
 def configure(p: argparse.ArgumentParser) -> None:
     p.description, p.epilog, p.formatter_class = DESCRIPTION, EPILOG, argparse.RawDescriptionHelpFormatter
     p.add_argument("logs", nargs="+", metavar="LOG",
-                   help="run log directories (`rov-mav run --log DIR`), or the vehicle's own DataFlash logs (.BIN) "
-                        "of runs (with --mission)")
+                   help="run log directories (`rov-mav run --log DIR`), or the vehicle's own DataFlash logs (.BIN): "
+                        "of runs (with --mission), or of a pilot's dives (without)")
     p.add_argument("--mission", type=mission_file, metavar="NAME|FILE",
                    help=f"for a .BIN: the {MISSION_HELP}; its start is the one the run announced (logged by the "
                         "vehicle as a GCS: message), else --mission-start")
@@ -72,49 +79,70 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=main)
 
 
-def load_dataflash_run(path: str, mission, start: float | None, prior=None):
+def load_dataflash_run(path: str, mission, start: float | None, prior):
     """A run as the vehicle's own DataFlash log holds it (`review.dataflash_log`: its EKF state, attitude and rates,
-    RCOU's PWMs and BAT's voltage at 10 Hz), tracking `mission` from its start: an identification `Run` over the
-    mission's span, each tick's PWM the outputs at the middle of its interval. The thrust's sign is the PWM's (no
-    MOT_n_DIRECTION mirroring is known from the log), the state's age 0. ConfigError (one line) when the log cannot give one."""
+    RCOU's PWMs and BAT's voltage at 10 Hz): an identification `Run` and, for a pilot's dive (`mission` None), which
+    DOFs it excited (`dive_runs.excitation`), else None. With a mission, the run tracks it over its span from its
+    start; without, the armed states are the run and the dive's own smoothed motion its reference. Each tick's PWM
+    is the motors' outputs (`dive_runs.motor_outputs`) at the middle of its interval, its thrust's sign the PWM's
+    times MOT_k_DIRECTION, the state's age 0. ConfigError (one line) when the log cannot give one."""
     from rov_mav.config import ConfigError
+    from rov_mav.offline import dive_runs
     from rov_mav.offline.identification import Run
+    from rov_mav.review.analysis import vehicle_time
     from rov_mav.review.dive_review import read_dive
     from rov_mav.review.reference import mission_start
 
     _, dive = read_dive(Path(path))
-    if prior is not None:
-        _same_frame(path, dive, prior)
-    if mission is None:
-        raise ConfigError(f"{path}: a .BIN needs --mission (the mission the run flew): the log holds no reference")
-    t0, _ = mission_start(dive, start)
-    if t0 is None or dive.servo_t.size == 0:
+    _same_frame(path, dive, prior)
+    if dive.servo_t.size == 0 or dive.state_t.size == 0:
         raise ConfigError(f"{path}: no state or no RCOU in the log")
-    flown = (dive.state_t >= t0) & (dive.state_t <= t0 + mission.duration)
-    t = dive.state_t[flown]
+    try:
+        outputs = dive_runs.motor_outputs(dive.params, prior.frame)
+        servo = dive_runs.motor_pwm(dive.servo, outputs)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    if mission is not None:
+        t0, _ = mission_start(dive, start)
+        if t0 is None:
+            raise ConfigError(f"{path}: no mission start in the log (give --mission-start)")
+        kept = (dive.state_t >= t0) & (dive.state_t <= t0 + mission.duration)
+        what = f"between the mission's start ({t0:.2f} s) and its end"
+    else:
+        armed_at = np.searchsorted(vehicle_time(dive, dive.heartbeat_wall), dive.state_t, side="right") - 1
+        kept = (armed_at >= 0) & dive.armed[np.maximum(armed_at, 0)] if dive.armed.size else dive.state_t < 0
+        what = "armed"
+    t = dive.state_t[kept]
     if t.size < 10:
-        raise ConfigError(f"{path}: fewer than 10 states between the mission's start ({t0:.2f} s) and its end")
+        raise ConfigError(f"{path}: fewer than 10 states {what}")
     # the run's tick holds its PWM until the next one; the log samples the outputs at 10 Hz, so the PWM over a tick's
     # interval is the logged one at its middle (interpolated): the sample at its start would lag it by half a period
     middle = np.concatenate([0.5 * (t[1:] + t[:-1]), [t[-1]]])
-    pwm = np.column_stack([np.interp(middle, dive.servo_t, dive.servo[:, i]) for i in range(dive.servo.shape[1])])
+    pwm = np.column_stack([np.interp(middle, dive.servo_t, servo[:, i]) for i in range(servo.shape[1])])
     boot_wall = np.interp(t, dive.clock_t, dive.clock_wall)
     voltage = np.interp(boot_wall, dive.power_wall, dive.voltage) if dive.power_wall.size else np.full(t.size, 16.0)
-    return Run(path, t, dive.eta[flown], dive.nu[flown], pwm, np.sign(pwm - 1500.0), voltage,
-               mission.reference(t - t0), np.zeros(t.size))
+    sign = np.sign(pwm - 1500.0) * dive_runs.motor_directions(dive.params, servo.shape[1])
+    if mission is not None:
+        return Run(path, t, dive.eta[kept], dive.nu[kept], pwm, sign, voltage, mission.reference(t - t0),
+                   np.zeros(t.size)), None
+    reference = dive_runs.own_reference(t, dive.eta[kept])
+    excited = dive_runs.excitation(reference, "external_navigation" in dive.onboard)
+    return Run(path, t, dive.eta[kept], dive.nu[kept], pwm, sign, voltage, reference, np.zeros(t.size)), excited
 
 
 def _same_frame(path: str, dive, prior) -> None:
     """ConfigError (one line) when the log's vehicle is on another frame than the prior (its motors would be read as
-    the wrong thrusters): FRAME_CONFIG, else the banner's "Frame:" text (`analysis.logged_frames`)."""
+    the wrong thrusters): FRAME_CONFIG, else the banner's "Frame:" text (`analysis.logged_frames`); the remedy names
+    the shipped vehicle files of the logged frame."""
     from rov_mav.config import ConfigError
-    from rov_mav.model.frames import MAX_MOTORS
+    from rov_mav.model.vehicle import load_vehicle
     from rov_mav.review.analysis import logged_frames
+    from rov_mav.shipped import listing
 
     frames, _ = logged_frames(dive)
     if frames and prior.frame not in frames:
-        remedy = "give --vehicle a model of this frame" if frames[0].motors == MAX_MOTORS else \
-            f"rov-mav's vehicle model has {MAX_MOTORS} thrusters, so this frame cannot be identified yet"
+        shipped = [s.name for s in listing("vehicle") if load_vehicle(s.path).frame in frames]
+        remedy = f"give --vehicle {' or '.join(shipped)}" if shipped else "give --vehicle a model of this frame"
         raise ConfigError(f"{path}: the logged vehicle is {frames[0].describe()}; the prior {prior.name} is "
                           f"{prior.frame.describe()}: its motors would be read as other thrusters ({remedy})")
 
@@ -150,8 +178,8 @@ def load_run(directory: str):
                ticks["telemetry_age"])
 
 
-def _report(result, logs: list[str], out: str, window: float) -> str:
-    """The table of parameters, the fit per DOF, what was kept, where the file went."""
+def _report(result, logs: list[str], out: str | None, window: float) -> str:
+    """The table of parameters, the fit per DOF, what was kept, where the file went (None: nothing written)."""
     n = len(logs)
     lines = [f"identify: {n} log{'s' if n > 1 else ''}, {result.duration:.1f} s of flight in {result.windows} windows "
              f"of {window:g} s, command-to-thrust delay {result.delay * 1e3:.1f} ms",
@@ -163,14 +191,16 @@ def _report(result, logs: list[str], out: str, window: float) -> str:
     lines.append(f"  net buoyancy {vehicle.buoyancy - vehicle.weight:+.2f} N (B - W); centre of buoyancy "
                  f"{np.round(vehicle.center_of_buoyancy * 1e3, 1).tolist()} mm")
     lines.append("fit per DOF (R^2: the share of its force the model explains; residual: the RMS left, per window):")
-    lines += [f"  {f.dof:<6} R^2 {f.r2:.4f}  residual RMS {f.rms:.3g} {f.unit}" for f in result.fits]
+    lines += [f"  {f.dof:<6} R^2 {f.r2:.4f}  residual RMS {f.rms:.3g} {f.unit}" if np.isfinite(f.r2) else
+              f"  {f.dof:<6} not fitted" for f in result.fits]
     kept = [e.name for e in result.estimates if e.status.startswith("prior")]
     lines.append(f"kept at the prior (not identifiable from these logs): {', '.join(kept) or 'nothing'}")
-    lines.append(f"wrote {out} (fly with it: rov-mav run --vehicle {out} MISSION)")
+    if out is not None:
+        lines.append(f"wrote {out} (fly with it: rov-mav run --vehicle {out} MISSION)")
     return "\n".join(lines)
 
 
-def _checked(runs, prior, net_buoyancy, window):
+def _checked(runs, prior, net_buoyancy, window, dofs):
     """The held-back check (`prediction_check`): a fit on the first two thirds of each run, its predictions on the
     last third beside the prior's; IdentificationError (one line) when the first part alone cannot be fitted."""
     from rov_mav.offline.identification import MIN_DURATION, IdentificationError, identify
@@ -178,7 +208,7 @@ def _checked(runs, prior, net_buoyancy, window):
 
     parts = [split(run) for run in runs]
     try:
-        first = identify([fit for fit, _ in parts], prior, net_buoyancy, window)
+        first = identify([fit for fit, _ in parts], prior, net_buoyancy, window, dofs=dofs)
     except IdentificationError as exc:
         need = MIN_DURATION / (1.0 - HELD_BACK)
         raise IdentificationError(f"the check on held-back data cannot fit the first two thirds of the logs ({exc}): "
@@ -207,6 +237,49 @@ def _check_lines(comparisons) -> list[str]:
     return lines
 
 
+def _dofs(excitations) -> np.ndarray | None:
+    """The DOFs to fit: all when any log is of a mission (None), else those some pilot's dive excited; IdentificationError
+    (one line, each DOF's reason) when none was."""
+    from rov_mav.offline.identification import IdentificationError
+
+    if any(e is None for e in excitations):
+        return None
+    fitted = np.any([[d.fitted for d in e] for e in excitations], axis=0)
+    if not fitted.any():
+        raise IdentificationError("no degree of freedom was excited enough to fit, so no model can come from these "
+                                  "logs: " + "; ".join(f"{d.dof} {d.why}" for d in excitations[0]))
+    return fitted
+
+
+def _excitation_lines(excitations) -> list[str]:
+    dives = [e for e in excitations if e is not None]
+    if not dives:
+        return []
+    lines = ["what the dive excited (a pilot's dive: only these DOFs' balances are fitted; the rest keep the prior):"]
+    for i, d in enumerate(dives[0]):
+        best = max((e[i] for e in dives), key=lambda x: (x.fitted, x.motion))
+        lines.append(f"  {d.dof:<6} {'fitted' if best.fitted else 'kept'}: {best.why}")
+    return lines
+
+
+def _load(args, prior):
+    """(runs, excitations): each LOG as an identification run, with what it excited (None for a mission's)."""
+    from rov_mav.config import ConfigError
+    from rov_mav.model.vehicle import FLOWN_THRUSTERS
+
+    mission = load_mission(args) if args.mission else None
+    loaded = []
+    for d in args.logs:
+        if d.lower().endswith(".bin"):
+            loaded.append(load_dataflash_run(d, mission, args.mission_start, prior))
+            continue
+        if len(prior.thruster_positions) != FLOWN_THRUSTERS:
+            raise ConfigError(f"{d}: a run log drives {FLOWN_THRUSTERS} thrusters; the prior {prior.name} has "
+                              f"{len(prior.thruster_positions)}")
+        loaded.append((load_run(d), None))
+    return [run for run, _ in loaded], [excited for _, excited in loaded]
+
+
 def main(args: argparse.Namespace) -> int:
     from rov_mav.config import ConfigError
     from rov_mav.model.vehicle import load_vehicle, save_vehicle
@@ -215,22 +288,24 @@ def main(args: argparse.Namespace) -> int:
     prior = load_vehicle(args.vehicle)
     window = args.window or WINDOW
     try:
-        mission = load_mission(args) if args.mission else None
-        runs = [load_dataflash_run(d, mission, args.mission_start, prior) if d.lower().endswith(".bin")
-                else load_run(d) for d in args.logs]
-        result = identify(runs, prior, args.net_buoyancy, window)
-        comparisons = _checked(runs, prior, args.net_buoyancy, window)
+        runs, excitations = _load(args, prior)
+        if lines := _excitation_lines(excitations):
+            print("\n".join(lines), flush=True)
+        dofs = _dofs(excitations)
+        result = identify(runs, prior, args.net_buoyancy, window, dofs=dofs)
+        comparisons = _checked(runs, prior, args.net_buoyancy, window, dofs)
     except (ConfigError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)
         return 2
     if refusal := _refusal(result, comparisons):
+        print(_report(result, args.logs, None, window), flush=True)
         print("\n".join(_check_lines(comparisons)), flush=True)
         print(f"rov-mav identify: refused: {refusal}", file=sys.stderr)
         return 1
     fitted = sum(e.status == "fitted" for e in result.estimates)
     header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
               f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
-              + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits))
+              + "; ".join(f"{f.dof} R^2 {f.r2:.4f}" for f in result.fits if np.isfinite(f.r2)))
     save_vehicle(replace(result.vehicle, name=f"{prior.name}, identified"), args.out, header)
     print(_report(result, args.logs, args.out, window), flush=True)
     print("\n".join(_check_lines(comparisons)), flush=True)

@@ -306,7 +306,7 @@ def main(args: argparse.Namespace) -> int:
     from rov_mav.flight.runner import Runner, warm_up
     from rov_mav.flight.status import StatusLine
     from rov_mav.mission.metrics import run_metrics, truth_metrics
-    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.model.vehicle import load_flown_vehicle
 
     if (args.mission is None) != args.mission_from_vehicle or (args.mission_from_vehicle and args.target is None):
         print("rov-mav run: error: give a mission (a shipped mission's name or a file), or --mission-from-vehicle "
@@ -318,7 +318,7 @@ def main(args: argparse.Namespace) -> int:
     guided = args.controller == GUIDED_KIND
     settings = None if guided else controller_settings(args)
     kind = GUIDED_KIND if guided else settings.kind
-    model = load_vehicle(args.vehicle)
+    model = load_flown_vehicle(args.vehicle)
     for option, value in (("--vehicle-faults", args.vehicle_faults), ("--navigation", args.navigation)):
         if args.target is not None and value is not None:
             print(f"rov-mav run: error: {option} applies to the built-in vehicle only (no --target)", file=sys.stderr)

@@ -53,14 +53,14 @@ def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav import telemetry
     from rov_mav.mission.metrics import trace_metrics
-    from rov_mav.model.vehicle import load_vehicle
+    from rov_mav.model.vehicle import load_flown_vehicle
     from rov_mav.offline.plots import plot_run
     from rov_mav.offline.simulation import simulate
 
     mission = load_mission(args)
     settings = controller_settings(args)
-    model = load_vehicle(args.vehicle)
-    plant = load_vehicle(args.plant_params) if args.plant_params else model
+    model = load_flown_vehicle(args.vehicle)
+    plant = load_flown_vehicle(args.plant_params) if args.plant_params else model
     out_dir = require_writable(args.out or f"out/simulate-{mission.name}-{settings.kind}", folder=True, option="--out")
     metrics_path = require_writable(args.metrics or out_dir / "metrics.json", folder=False, option="--metrics")
     check_rerun_output(args, out_dir / "run.rrd")

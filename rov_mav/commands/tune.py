@@ -39,7 +39,7 @@ from rov_mav.commands.common import (
 from rov_mav.control.controller import ControllerSettings
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import MAX_DURATION, Mission
-from rov_mav.model.vehicle import Vehicle, load_vehicle
+from rov_mav.model.vehicle import Vehicle, load_flown_vehicle
 from rov_mav.offline import loop_kernel, pso, tuning
 from rov_mav.offline.scenarios import load_scenarios, nominal
 from rov_mav.offline.simulation import Trace, simulate
@@ -127,7 +127,7 @@ def write_gains(path: Path, settings: ControllerSettings, header: str) -> None:
 def main(args: argparse.Namespace) -> int:
     mission = load_mission(args)
     start = controller_settings(args)
-    model = load_vehicle(args.vehicle)
+    model = load_flown_vehicle(args.vehicle)
     out = require_writable(args.out or f"out/tune-{mission.name}/gains.yaml", folder=False, option="--out")
     plot_dir = require_writable(args.plot or out.parent, folder=True, option="--plot")
     check_rerun_output(args, plot_dir / "tune.rrd")

@@ -15,7 +15,7 @@ from pydantic import Field, field_validator, model_validator
 
 from rov_mav import config
 from rov_mav.model import kernel
-from rov_mav.model.frames import FRAMES, HEAVY, Frame, frame_named
+from rov_mav.model.frames import FRAMES, HEAVY, MAX_MOTORS, Frame, frame_named
 
 MAX_VALUE = 1e6   # |any number| in a vehicle file (SI units): far beyond any ROV, and products stay finite
 Real = Annotated[float, Field(ge=-MAX_VALUE, le=MAX_VALUE)]
@@ -25,11 +25,12 @@ Positive = Annotated[float, Field(gt=0, le=MAX_VALUE)]
 NonNegative6 = Annotated[list[Annotated[float, Field(ge=0, le=MAX_VALUE)]], Field(min_length=6, max_length=6)]
 
 DEFAULT_VEHICLE_FILE = "bluerov2_heavy.yaml"
+FLOWN_THRUSTERS = 8      # the controller, allocation and simulator drive the Heavy's eight (`load_flown_vehicle`)
 
 
 class _QuadraticSchema(config.StrictModel):
-    max_thrust: Positive | Annotated[list[Positive], Field(min_length=8, max_length=8)]
-    max_reverse: Positive | Annotated[list[Positive], Field(min_length=8, max_length=8)] | None = None
+    max_thrust: Positive | Annotated[list[Positive], Field(min_length=1, max_length=MAX_MOTORS)]
+    max_reverse: Positive | Annotated[list[Positive], Field(min_length=1, max_length=MAX_MOTORS)] | None = None
     dead_band: Annotated[list[float], Field(min_length=2, max_length=2)] = [1475.0, 1525.0]
     full_scale: Positive = 400.0
 
@@ -46,11 +47,11 @@ class _CurveSchema(config.StrictModel):
 
 
 class _ThrusterSchema(config.StrictModel):
-    positions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
-    directions: Annotated[list[Vec3], Field(min_length=8, max_length=8)]
+    positions: Annotated[list[Vec3], Field(min_length=1, max_length=MAX_MOTORS)]
+    directions: Annotated[list[Vec3], Field(min_length=1, max_length=MAX_MOTORS)]
     time_constant: Annotated[float, Field(ge=0, le=10.0)]
     thrust_scale: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
-    per_thruster_scale: Annotated[list[Positive], Field(min_length=8, max_length=8)] = [1.0] * 8
+    per_thruster_scale: Annotated[list[Positive], Field(min_length=1, max_length=MAX_MOTORS)] | None = None
     curve: _CurveSchema | None = None          # "t200" or absent: the Blue Robotics T200 data
 
     @field_validator("curve", mode="before")
@@ -69,6 +70,18 @@ class _ThrusterSchema(config.StrictModel):
             if abs(float(np.linalg.norm(d)) - 1.0) > 1e-3:
                 raise ValueError(f"thruster {i + 1} direction is not a unit vector")
         return directions
+
+    @model_validator(mode="after")
+    def _one_entry_per_thruster(self) -> "_ThrusterSchema":
+        n = len(self.positions)
+        lists = {"directions": self.directions, "per_thruster_scale": self.per_thruster_scale}
+        if self.curve is not None:
+            lists |= {"curve.quadratic.max_thrust": self.curve.quadratic.max_thrust,
+                      "curve.quadratic.max_reverse": self.curve.quadratic.max_reverse}
+        for name, values in lists.items():
+            if isinstance(values, list) and len(values) != n:
+                raise ValueError(f"{name} lists {len(values)} thrusters, positions {n}")
+        return self
 
 
 class _VehicleSchema(config.StrictModel):
@@ -125,8 +138,8 @@ class QuadraticCurve:
     SITL submarine; `rov_mav.model.thrusters.ThrusterMap.quadratic` turns it into a map). k per thruster and
     direction."""
 
-    max_forward: np.ndarray          # (8,) N at 1500 + full_scale
-    max_reverse: np.ndarray          # (8,) N (magnitudes) at 1500 - full_scale
+    max_forward: np.ndarray          # (n,) N at 1500 + full_scale, per thruster
+    max_reverse: np.ndarray          # (n,) N (magnitudes) at 1500 - full_scale
     dead_band: tuple[float, float]   # us, force 0 from low to high inclusive
     full_scale: float                # us
 
@@ -152,11 +165,11 @@ class Vehicle:
     linear_damping: np.ndarray        # (6,)
     quadratic_damping: np.ndarray     # (6,)
     size: np.ndarray                  # (3,) length, width, height
-    thruster_positions: np.ndarray    # (8, 3)
-    thruster_directions: np.ndarray   # (8, 3)
+    thruster_positions: np.ndarray    # (n, 3): n = frame.motors, motor k is thruster k
+    thruster_directions: np.ndarray   # (n, 3)
     thruster_time_constant: float
     thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(2))   # (2,) forward, reverse: x the curve
-    per_thruster_scale: np.ndarray = field(default_factory=lambda: np.ones(8))   # (8,) each thruster's, x the above
+    per_thruster_scale: np.ndarray = field(default_factory=lambda: np.ones(8))   # (n,) each thruster's, x the above
     thruster_curve: QuadraticCurve | None = None   # None: the Blue Robotics T200 data at the battery voltage
     frame: Frame = HEAVY             # ArduSub's frame whose motors 1..n are thrusters T1..Tn
 
@@ -274,18 +287,31 @@ def load_vehicle(path: str | Path | None = None) -> Vehicle:
         thruster_directions=np.array(s.thrusters.directions, dtype=float),
         thruster_time_constant=s.thrusters.time_constant,
         thrust_scale=np.array(s.thrusters.thrust_scale, dtype=float),
-        per_thruster_scale=np.array(s.thrusters.per_thruster_scale, dtype=float),
-        thruster_curve=_curve(s.thrusters.curve),
+        per_thruster_scale=np.array(s.thrusters.per_thruster_scale or [1.0] * len(s.thrusters.positions), float),
+        thruster_curve=_curve(s.thrusters.curve, len(s.thrusters.positions)),
         frame=frame_named(s.frame),
     )
 
 
-def _curve(spec: _CurveSchema | None) -> QuadraticCurve | None:
+def load_flown_vehicle(path: str | Path | None = None) -> Vehicle:
+    """A vehicle file for what flies or simulates it (run, simulate, tune, bench, the built-in vehicle): their
+    controller, allocation and simulator drive eight thrusters, so a frame of fewer (the standard BlueROV2's six) is
+    refused here, in one line (ConfigError); such a file is a prior for identify and analyze."""
+    vehicle = load_vehicle(path)
+    if len(vehicle.thruster_positions) != FLOWN_THRUSTERS:
+        raise config.ConfigError(
+            f"{path or default_vehicle_path()}: {vehicle.name} is {vehicle.frame.describe()}: rov-mav flies and "
+            f"simulates {FLOWN_THRUSTERS}-thruster vehicles only (this file is a prior for identify and analyze)")
+    return vehicle
+
+
+def _curve(spec: _CurveSchema | None, thrusters: int) -> QuadraticCurve | None:
     if spec is None:
         return None
     q = spec.quadratic
-    forward = np.broadcast_to(np.asarray(q.max_thrust, dtype=float), (8,)).copy()
-    reverse = forward if q.max_reverse is None else np.broadcast_to(np.asarray(q.max_reverse, float), (8,)).copy()
+    forward = np.broadcast_to(np.asarray(q.max_thrust, dtype=float), (thrusters,)).copy()
+    reverse = forward if q.max_reverse is None else \
+        np.broadcast_to(np.asarray(q.max_reverse, float), (thrusters,)).copy()
     return QuadraticCurve(forward, reverse, (float(q.dead_band[0]), float(q.dead_band[1])), float(q.full_scale))
 
 

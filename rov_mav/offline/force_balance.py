@@ -198,7 +198,7 @@ class Flights:
     """The runs cut into windows, as measured and as the reference asked; thrust integrals for any delay."""
 
     def __init__(self, runs: list[Run], prior: Vehicle, window: float, smoothing: float):
-        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2), per_thruster_scale=np.ones(8)))
+        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2), per_thruster_scale=np.ones(len(prior.per_thruster_scale))))
         self.lag = prior.thruster_time_constant
         rigid = prior.rigid_body_mass_matrix
         self.pieces: list[Piece] = []
@@ -262,7 +262,7 @@ class Flights:
 
 
 def horizontal(vehicle: Vehicle) -> np.ndarray:
-    """(8,) which thrusters push in the body's x-y plane (the group whose height and scale theta holds)."""
+    """(n,) which thrusters push in the body's x-y plane (the group whose height and scale theta holds)."""
     return np.abs(vehicle.thruster_directions[:, 2]) < 0.1
 
 
@@ -295,13 +295,14 @@ class Balance:
         self.b0 -= self.height0 * self.b_height
         self.base = prior.per_thruster_scale / np.where(self.horizontal, self.group0, 1.0)
         self.hold_height = False    # True: the horizontal thrusters stay at the prior's height whatever their scale
+        self.dofs = np.ones(6)      # 1: the DOF's balance is fitted; 0: left out (its data cannot be trusted)
 
     def _matrix(self, arms: np.ndarray) -> np.ndarray:
         """The allocation matrix without the horizontal thrusters' roll and pitch moments (their height's)."""
         return self.b0 + sum((s - 1.0) * b for s, b in zip(arms, self.b_arm))
 
     def gain(self, theta: np.ndarray) -> np.ndarray:
-        """(8,) each thruster's scale on the bench thrust (the vehicle's per_thruster_scale)."""
+        """(n,) each thruster's scale on the bench thrust (the vehicle's per_thruster_scale)."""
         return self.base * np.where(self.horizontal, theta[28], 1.0)
 
     def moment(self, theta: np.ndarray) -> float:
@@ -323,8 +324,8 @@ class Balance:
         lhs[:, :3] -= net * w.rho
         lhs[:, 3:] -= np.cross(net * self.r_g - buoyancy * lever, w.rho)
         rhs = self._thrust_side(theta, theta[22] * w.thrust_pos + theta[23] * w.thrust_neg)
-        d = w.duration[:, None]
-        return lhs / d, rhs / d
+        per = self.dofs / w.duration[:, None]
+        return lhs * per, rhs * per
 
     def jacobian(self, theta: np.ndarray, w: Windows) -> np.ndarray:
         """d(model side - thrust side)/d theta, (W, 6, 29): exact, the model being at most bilinear."""
@@ -352,7 +353,7 @@ class Balance:
             jac[:, :, 28] += self.height0 * height
         else:
             jac[:, :, 27] = height
-        return jac / w.duration[:, None, None]
+        return jac * self.dofs[None, :, None] / w.duration[:, None, None]
 
     def vehicle(self, theta: np.ndarray) -> Vehicle:
         """The prior with theta's values in (volume from B, r_b from the lever, thruster positions from the arms and

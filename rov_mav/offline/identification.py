@@ -191,11 +191,13 @@ def _culprit(candidates: list[str], rank: dict[str, float]) -> str:
 
 
 def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
-             window: float = WINDOW, smoothing: float = SMOOTHING) -> Identification:
+             window: float = WINDOW, smoothing: float = SMOOTHING, dofs: np.ndarray | None = None) -> Identification:
     """Fit the model's unknowns to `runs`, starting from (and falling back on) `prior`; see the module docstring.
 
     net_buoyancy: the vehicle's measured weight in water, B - W in N (positive: it floats), or None to keep the
-    prior's forward thrust scale instead. IdentificationError when the runs are too short to fit anything."""
+    prior's forward thrust scale instead. dofs: (6,) bool, the DOFs whose balance is fitted (default all); a parameter
+    acting in the others only keeps the prior ("not excited"). IdentificationError when the runs are too short to
+    fit anything."""
     duration = sum(float(r.t[-1] - r.t[0]) for r in runs)
     if duration < MIN_DURATION:
         raise IdentificationError(f"only {duration:.1f} s of flight in the logs; identify needs at least "
@@ -212,6 +214,11 @@ def identify(runs: list[Run], prior: Vehicle, net_buoyancy: float | None = None,
         status["buoyancy"] = f"given: net buoyancy {net_buoyancy:+.2f} N (--net-buoyancy)"
     data = Flights(runs, prior, window, smoothing)
     model = Balance(prior)
+    if dofs is not None:
+        model.dofs = np.asarray(dofs, dtype=float)
+        for dof in (d for d, fitted in zip(DOFS, dofs) if not fitted):
+            for kind in ("added_mass", "linear_damping", "quadratic_damping"):
+                status[f"{kind}.{dof}"] = f"prior: {dof} is not fitted (not excited, or not measured)"
 
     def free_mask() -> np.ndarray:
         model.hold_height = "arm_horizontal_z" in status      # a held height follows the fitted scale
