@@ -238,8 +238,8 @@ def _check_lines(comparisons) -> list[str]:
 
 
 def _dofs(excitations) -> np.ndarray | None:
-    """The DOFs to fit: all when any log is of a mission (None), else those some pilot's dive excited; IdentificationError
-    (one line, each DOF's reason) when none was."""
+    """The DOFs to fit: all when any log is of a mission (None), else those some pilot's dive excited;
+    IdentificationError (one line, each DOF's reason) when none was."""
     from rov_mav.offline.identification import IdentificationError
 
     if any(e is None for e in excitations):

@@ -198,7 +198,8 @@ class Flights:
     """The runs cut into windows, as measured and as the reference asked; thrust integrals for any delay."""
 
     def __init__(self, runs: list[Run], prior: Vehicle, window: float, smoothing: float):
-        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2), per_thruster_scale=np.ones(len(prior.per_thruster_scale))))
+        t200 = thruster_curve(replace(prior, thrust_scale=np.ones(2), per_thruster_scale=np.ones_like(
+            prior.per_thruster_scale)))
         self.lag = prior.thruster_time_constant
         rigid = prior.rigid_body_mass_matrix
         self.pieces: list[Piece] = []
