@@ -76,7 +76,9 @@ def plot_path(traces: dict[str, Trace], title: str, path: Path, planned: np.ndar
     if planned is not None:
         ax.plot(planned[:, 1], planned[:, 0], planned[:, 2], "k--o", lw=1, ms=4, label="waypoints")
     else:
-        ax.plot(first.reference[:, 1], first.reference[:, 0], first.reference[:, 2], "k--", lw=1, label="reference")
+        every = max(1, len(first.t) // (2 * BUCKETS))
+        reference = first.reference[::every]
+        ax.plot(reference[:, 1], reference[:, 0], reference[:, 2], "k--", lw=1, label="reference")
     for name, trace in traces.items():
         every = max(1, len(trace.t) // (2 * BUCKETS))
         ax.plot(trace.eta[::every, 1], trace.eta[::every, 0], trace.eta[::every, 2], lw=1.3, label=name)
