@@ -42,3 +42,19 @@ def test_stabilize_holds_attitude_not_depth():
 
 def test_a_heading_error_is_the_short_way_round():
     assert angle_error_deg(np.array([359.0, 1.0, 180.0]), np.array([1.0, 359.0, -180.0])).tolist() == [-2.0, 2.0, 0.0]
+
+
+def test_the_position_controllers_velocity_errors_are_the_size_of_the_horizontal_one_and_the_vertical_one():
+    """PSCN/PSCE/PSCD columns (m, m/s) as the record reader gives them: the horizontal velocity error is the length
+    of (TVN - VN, TVE - VE), PSCE brought to PSCN's times; the vertical one TVD - VD with its sign."""
+    from rov_mav.review.controller_tracking import dataflash_errors
+
+    t_us = np.arange(0, 2_000_000, 100_000, dtype=float)
+    zero = np.zeros_like(t_us)
+    north = {"TimeUS": t_us, "TPN": zero, "PN": zero, "TVN": np.full_like(t_us, 0.3), "VN": zero}
+    east = {"TimeUS": t_us + 50_000, "TPE": zero, "PE": zero, "TVE": zero, "VE": np.full_like(t_us, 0.4)}
+    down = {"TimeUS": t_us, "TVD": np.full_like(t_us, -0.2), "VD": np.full_like(t_us, 0.1)}
+    out = dataflash_errors({"PSCN": north, "PSCE": east, "PSCD": down})
+    np.testing.assert_allclose(out["horizontal_velocity_mps"].error, 0.5)
+    np.testing.assert_allclose(out["vertical_velocity_mps"].error, -0.3)
+    np.testing.assert_allclose(out["horizontal_m"].error, 0.0)

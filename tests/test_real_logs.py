@@ -182,34 +182,40 @@ def test_arduSubs_own_control_measured_alike_from_the_on_board_targets_and_the_t
     assert [s["mode"] for s in dataflash] == [s["mode"] for s in telemetry] == ["STABILIZE", "ALT_HOLD", "ALT_HOLD"]
     for onboard, topside in zip(dataflash, telemetry):
         assert (onboard["from_s"], onboard["to_s"]) == pytest.approx((topside["from_s"], topside["to_s"]), abs=0.5)
-        assert set(onboard["errors"]) == set(topside["errors"])
+        only_on_board = {"vertical_velocity_mps"}          # PSCD: the telemetry has no velocity target
+        assert set(onboard["errors"]) - only_on_board == set(topside["errors"])
         for name, tolerance in (("depth_m", 0.01), ("roll_deg", 0.5), ("pitch_deg", 0.5)):
             if name in onboard["errors"]:
                 assert onboard["errors"][name]["rms"] == pytest.approx(topside["errors"][name]["rms"],
                                                                        abs=tolerance), (onboard, topside)
 
 
-def test_arduSubs_depth_hold_figures_are_dfreaders_ctun_in_its_armed_alt_hold(reviews):
-    """ALT_HOLD's depth error of 00000016.BIN as DFReader alone reads it: CTUN's DAlt - Alt from each MODE 2 record
-    to the next MODE record or the disarm."""
+def test_arduSubs_depth_hold_figures_are_dfreaders_ctun_and_pscd_in_its_armed_alt_hold(reviews):
+    """ALT_HOLD's depth error of 00000016.BIN as DFReader alone reads it: CTUN's DAlt - Alt, and the position
+    controller's vertical velocity error, PSCD's TVD - VD, from each MODE 2 record to the next MODE record or the
+    disarm."""
     reader = DFReader.DFReader_binary(str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN"))
-    errors, mode, armed = [], None, True                  # the log starts armed (no ARM-on record)
-    stretches: list[list[float]] = []
-    while (r := reader.recv_match(type=["MODE", "ARM", "CTUN"])) is not None:
+    mode, armed = None, True                              # the log starts armed (no ARM-on record)
+    stretches: list[dict[str, list[float]]] = []
+    while (r := reader.recv_match(type=["MODE", "ARM", "CTUN", "PSCD"])) is not None:
         if r.get_type() == "MODE":
             mode = r.Mode
             if mode == 2 and armed:
-                stretches.append([])
+                stretches.append({"depth_m": [], "vertical_velocity_mps": []})
         elif r.get_type() == "ARM":
             armed = bool(r.ArmState)
         elif mode == 2 and armed and stretches:
-            stretches[-1].append(r.DAlt - r.Alt)
-    figures = [s["errors"]["depth_m"] for s in reviews["mohai-2023-10-18-00000016.BIN"]["ardusub_tracking"]
+            name, error = ("depth_m", r.DAlt - r.Alt) if r.get_type() == "CTUN" else \
+                ("vertical_velocity_mps", r.TVD - r.VD)
+            stretches[-1][name].append(error)
+    figures = [s["errors"] for s in reviews["mohai-2023-10-18-00000016.BIN"]["ardusub_tracking"]
                if s["mode"] == "ALT_HOLD"]
     assert len(figures) == len(stretches) == 2
     for figure, stretch in zip(figures, stretches):
-        assert figure["samples"] == pytest.approx(len(stretch), abs=1)
-        assert figure["max"] == pytest.approx(max(abs(e) for e in stretch), abs=1e-6)
+        for name, errors in stretch.items():
+            assert figure[name]["samples"] == pytest.approx(len(errors), abs=1)
+            assert figure[name]["max"] == pytest.approx(max(abs(e) for e in errors), abs=1e-6)
+            assert figure[name]["rms"] == pytest.approx(np.sqrt(np.mean(np.square(errors))), rel=0.02)
 
 
 def test_surftrak_flown_by_a_pilot_is_measured(reviews):

@@ -7,7 +7,8 @@ The targets, by source:
 - a DataFlash log: depth from CTUN's DAlt (the position controller's altitude target) against Alt (its altitude
   estimate), `Sub::Log_Write_Control_Tuning` (ArduSub/Log.cpp); height above the bottom from CTUN's DSAlt (SURFTRAK's
   rangefinder target) against SAlt (the rangefinder's altitude), where both are set; the horizontal position from
-  PSCN/PSCE's TPN/TPE against PN/PE (`AC_PosControl::Write_PSCN`, `Write_PSCE`); attitude from ATT's DesRoll,
+  PSCN/PSCE's TPN/TPE against PN/PE, the velocities from their TVN/TVE against VN/VE and PSCD's TVD against VD
+  (`AC_PosControl::Write_PSCN`, `Write_PSCE`, `Write_PSCD`: m and m/s since 4.1); attitude from ATT's DesRoll,
   DesPitch, DesYaw (the attitude controller's targets, `Sub::Log_Write_Attitude`) against Roll, Pitch, Yaw;
 - a telemetry log: NAV_CONTROLLER_OUTPUT, whose alt_error is the position controller's altitude error and whose
   nav_roll, nav_pitch and nav_bearing are the attitude targets (`GCS_MAVLINK_Sub::send_nav_controller_output`,
@@ -29,6 +30,8 @@ HOLDS = {                               # signal -> the modes (custom_mode) whos
     "depth_m": {ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK},
     "height_above_bottom_m": {SURFTRAK},
     "horizontal_m": {AUTO, GUIDED, CIRCLE, POSHOLD},
+    "vertical_velocity_mps": {ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK},
+    "horizontal_velocity_mps": {AUTO, GUIDED, CIRCLE, POSHOLD},
     "roll_deg": {STABILIZE, ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK},
     "pitch_deg": {STABILIZE, ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK},
     "yaw_deg": {STABILIZE, ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK},
@@ -125,7 +128,7 @@ def angle_error_deg(target_deg: np.ndarray, actual_deg: np.ndarray) -> np.ndarra
 
 def dataflash_errors(records: dict) -> dict[str, Errors]:
     """The targets a DataFlash log holds (see the module): `records` as `dataflash_records.read_records` gives
-    CTUN, PSCN, PSCE and ATT."""
+    CTUN, PSCN, PSCE, PSCD and ATT."""
     out: dict[str, Errors] = {}
     ctun = records.get("CTUN")
     if ctun is not None and "DAlt" in ctun and "Alt" in ctun:
@@ -139,6 +142,12 @@ def dataflash_errors(records: dict) -> dict[str, Errors]:
         t = north["TimeUS"] * 1e-6
         east_error = np.interp(t, east["TimeUS"] * 1e-6, east["TPE"] - east["PE"])
         out["horizontal_m"] = Errors(t, np.hypot(north["TPN"] - north["PN"], east_error))
+        if "TVN" in north and "TVE" in east:
+            east_speed = np.interp(t, east["TimeUS"] * 1e-6, east["TVE"] - east["VE"])
+            out["horizontal_velocity_mps"] = Errors(t, np.hypot(north["TVN"] - north["VN"], east_speed))
+    down = records.get("PSCD")
+    if down is not None and len(down) and "TVD" in down:
+        out["vertical_velocity_mps"] = Errors(down["TimeUS"] * 1e-6, down["TVD"] - down["VD"])
     att = records.get("ATT")
     if att is not None and "DesRoll" in att:
         t = att["TimeUS"] * 1e-6
@@ -164,7 +173,7 @@ def telemetry_errors(nav_wall: np.ndarray, nav: np.ndarray, attitude_wall: np.nd
 
 def describe(entry: dict) -> str:
     """One line of a stretch's figures."""
-    units = {"m": ("cm", 100.0), "deg": ("deg", 1.0)}
+    units = {"m": ("cm", 100.0), "mps": ("cm/s", 100.0), "deg": ("deg", 1.0)}
     parts = []
     for name, figure in entry["errors"].items():
         label, unit = name.rsplit("_", 1)

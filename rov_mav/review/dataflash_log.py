@@ -42,7 +42,7 @@ DOWN = 25                               # MAV_SENSOR_ROTATION_PITCH_270: a range
 RANGEFINDER_GOOD = 4                    # RFND.Stat (`RangeFinder::Status`): 0 not connected, 1 no data, 2 out of range
                                         # low, 3 high, 4 good: only a good reading is a distance
 TYPES = ("ATT", "RATE", "XKF1", "NKF1", "RCOU", "BAT", "CURR", "BARO", "CTUN", "RFND", "MODE", "ARM", "EV", "MSG",
-         "PARM", "PSCN", "PSCE")
+         "PARM", "PSCN", "PSCE", "PSCD")
 _RC_LABELS = [[f"C{i}", f"Ch{i}", f"Chan{i}"] for i in range(1, 17)]
 
 

@@ -179,11 +179,11 @@ def _review_tlog(path: Path, report: ReadReport, dive: Dive, mission: Mission | 
     metrics["ardusub_tracking"], review.targets = _ardusub_tracking(report, dive, t0)
     if dive.onboard:
         metrics["onboard"] = dive.onboard
-    for unit in ("m", "deg"):
+    for unit in ("m", "mps", "deg"):
         lines = {name.removesuffix(f"_{unit}").replace("_", " "): series for name, series in review.targets.items()
                  if name.endswith(f"_{unit}")}
         if lines:
-            review.timeline.append((f"ArduSub's error to its targets ({unit})", lines))
+            review.timeline.append((f"ArduSub's error to its targets ({unit.replace('mps', 'm/s')})", lines))
     metrics["source"] = _source(path, kind, report)
     return review
 

@@ -37,7 +37,7 @@ def default_blueprint(reference_path: np.ndarray | None = None, tuning: bool = F
         _plot(e.ATTITUDE_ERROR, "Attitude error (deg)"),
         _plot(e.DISTURBANCE_FORCE, "Disturbance force: estimate vs true (N)"),
         _plot(e.DISTURBANCE_MOMENT, "Disturbance moment: estimate vs true (N m)"),
-        *([_plot(e.ARDUSUB_ERRORS, "ArduSub's own control: error to its logged targets (m, deg)")]
+        *([_plot(e.ARDUSUB_ERRORS, "ArduSub's own control: error to its logged targets (m, m/s, deg)")]
           if ardusub_targets else []),
         name="Tracking")
     pose = rrb.Grid(*(_plot(path, f"{dof} ({unit})") for path, dof, unit in zip(e.POSE, e.DOFS, e.DOF_UNITS)),
