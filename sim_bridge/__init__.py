@@ -10,11 +10,15 @@ Run it with `rov-mav sim-bridge` (see its --help), or embed it:
     ...
     bridge.stop()
 
-Modules, one concept each: params (ArduSub's parameter table), rc (RC input and overrides), mixer
-(vectored_6dof), ardusub (arming, pilot and GCS failsafes, output routing), modes (mode numbers and the gates of a
-mode change), stabilize (the assisted modes' holds), surface (SURFACE mode and the surface detector), failsafes
-(leak, battery, EKF, depth sensor), battery, physics (PWM -> T200 -> lag -> wrench -> plant, thruster faults),
-vehicle_faults (which fault is live), avionics (what the autopilot's sensors read), navigation (the EKF's estimate
-and status), boot (power loss and boot), telemetry (message contents), schedule (message rates), protocol (answers
-to GCS messages), link (UDP/TCP transports), pacing (simulated vs wall clock), server (the loop), config, cli.
+Rooms from the bottom up (each imports only the rooms listed before it), then the assembly:
+
+- hardware/: physics, battery, power and boot, faults, the flight controller's arithmetic
+- autopilot/: ArduSub's flight code: parameters, pilot input, arming, modes, failsafes, the mixer
+- gcs/: what ArduSub says and answers on its links: telemetry, schedule, protocol, missions, signing, routing
+- navigation/: sensors, the estimator, the EKF's aiding and status, the navigation sources' messages
+- onboard_log/: the vehicle's own DataFlash log
+- transport/: the MAVLink transports, faults on them, pacing, hostile traffic
+- config: what a bridge is started with
+- server: the bridge: one loop stepping every room
+- process: the built-in vehicle in a process of its own, for `rov-mav run` without --target
 """

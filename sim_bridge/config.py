@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     from rov_mav.model.environment import Environment
     from rov_mav.model.navigation import Navigation
     from rov_mav.model.vehicle_faults import VehicleFaults
-    from sim_bridge.faults import FaultSpec
+    from sim_bridge.transport.faults import FaultSpec
 
 DEFAULT_OUT = "udpout:127.0.0.1:14550"
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 0.0)   # lat deg, lon deg, surface altitude m (ArduPilot SITL's home)
@@ -30,9 +30,9 @@ class BridgeConfig:
     start_depth: float = 0.0                          # m, at boot (level, heading north, at the origin)
     step: float = DEFAULT_STEP
     seed: int = 0                                     # of the sensor noise and the link faults
-    faults: FaultSpec | None = None                   # degrade the links on purpose (sim_bridge/faults.py)
-    vehicle_faults: VehicleFaults | None = None       # None: the environment's (sim_bridge/vehicle_faults.py)
+    faults: FaultSpec | None = None                   # degrade the links on purpose (sim_bridge/transport/faults.py)
+    vehicle_faults: VehicleFaults | None = None       # None: the environment's (sim_bridge/hardware/vehicle_faults.py)
     params: dict[str, float] = field(default_factory=dict)
     signing_key: bytes | None = None                  # 32 bytes: MAVLink 2 signing on, as ArduSub with a stored key
-    navigation: Navigation | None = None              # None: the environment's, else ideal (rov_mav/model/navigation.py)
-    log_dir: str | None = None                        # the vehicle's own DataFlash logs (sim_bridge/onboard_log.py)
+    navigation: Navigation | None = None              # None: the environment's, else ideal (model/navigation.py)
+    log_dir: str | None = None                        # the vehicle's own DataFlash logs (onboard_log/logger.py)

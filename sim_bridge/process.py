@@ -18,7 +18,7 @@ import multiprocessing
 import signal
 
 from sim_bridge.config import BridgeConfig
-from sim_bridge.link import LinkError
+from sim_bridge.transport.link import TransportError
 
 START_TIMEOUT = 120.0       # wall s for the child to import, load its compiled model and open its link
 STOP_TIMEOUT = 10.0         # wall s for it to end on SIGTERM before it is killed
@@ -37,7 +37,7 @@ def _serve(config: BridgeConfig, ready) -> None:
     try:
         bridge = Bridge(config)
         bridge.open()
-    except (LinkError, ValueError) as exc:
+    except (TransportError, ValueError) as exc:
         ready.send(("error", str(exc)))
         return
     signal.signal(signal.SIGTERM, lambda *_: bridge.request_stop())
@@ -50,7 +50,7 @@ def _serve(config: BridgeConfig, ready) -> None:
 
 
 class VehicleProcess:
-    """`launch()` the bridge of `config` in a child process (it loads meanwhile), `start()` its clock (LinkError if
+    """`launch()` the bridge of `config` in a child process (it loads meanwhile), `start()` its clock (TransportError if
     it cannot start), `stop()` it."""
 
     def __init__(self, config: BridgeConfig):
@@ -75,17 +75,17 @@ class VehicleProcess:
         receive = self._pipe
         if not receive.poll(START_TIMEOUT):
             self.stop()
-            raise LinkError(f"no answer within {START_TIMEOUT:g} s")
+            raise TransportError(f"no answer within {START_TIMEOUT:g} s")
         try:
             status, text = receive.recv()
         except EOFError:
             self._process.join(STOP_TIMEOUT)
             code = self._process.exitcode
             self.stop()
-            raise LinkError(f"it exited with status {code}") from None
+            raise TransportError(f"it exited with status {code}") from None
         if status != "ok":
             self.stop()
-            raise LinkError(text)
+            raise TransportError(text)
         self.firmware = text
         receive.send("go")
 

@@ -4,14 +4,17 @@ Each step of h simulated seconds: ArduSub's main loop (RC input, failsafes) -> s
 thruster faults) -> the navigation estimate -> the telemetry due on each link. Between steps the loop reads the
 links and sleeps until the next step is due on the wall clock (`Pacer`). Run it blocking (`run()`, the CLI) or in a
 background thread (`start()` / `stop()`).
-Vehicle faults (`sim_bridge.vehicle_faults`) run on `t`, the vehicle's clock since the bridge started; the autopilot
+Vehicle faults (`sim_bridge.hardware.vehicle_faults`) run on `t`, the vehicle's clock since the bridge started; the
+autopilot
 runs on `uptime`, its time since boot, which a reboot (`reboot@T`, MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN) restarts
-(`sim_bridge.boot`): from the power loss the autopilot sends nothing, ignores what arrives, drives no thruster and
+(`sim_bridge.hardware.boot`): from the power loss the autopilot sends nothing, ignores what arrives, drives no thruster
+and
 its TCP clients are disconnected (as a restarting SITL's); at its start a fresh ArduSub (disarmed, MANUAL, no
 overrides, RC input and failsafes as at boot, no GCS seen, the stored parameters, no SET_MESSAGE_INTERVAL), a fresh
 EKF and battery monitor (mAh counted from 0), the stored mission, each link's sequence restarting under the stored
 sysid; the main loop then sends INFO "ArduPilot Ready".
-Every message received goes through ArduPilot's routing first (`sim_bridge.routing`, as `GCS_MAVLINK::packetReceived`
+Every message received goes through ArduPilot's routing first (`sim_bridge.gcs.routing`, as
+`GCS_MAVLINK::packetReceived`
 calls `MAVLink_routing::check_and_forward`): forwarded unchanged to the links it belongs on, and handled here only if
 it is for this vehicle and, with MAV_OPTIONS bit 0, from a GCS sysid (`GCS_MAVLINK::accept_packet`).
 An exception while handling one received message is contained: counted in `handler_errors`, reported in one stderr
@@ -33,25 +36,26 @@ from rov_mav.model.navigation import PRESETS as NAVIGATION_PRESETS
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_flown_vehicle
-from sim_bridge import boot, telemetry
-from sim_bridge.ardusub import MAV_SEVERITY_INFO, ArduSub
-from sim_bridge.battery import Battery
+from sim_bridge.hardware import boot
+from sim_bridge.gcs import telemetry
+from sim_bridge.autopilot.ardusub import MAV_SEVERITY_INFO, ArduSub
+from sim_bridge.hardware.battery import Battery
 from sim_bridge.config import BridgeConfig
-from sim_bridge.avionics import Avionics
-from sim_bridge.faults import LinkFaults
-from sim_bridge.link import Link, open_links
-from sim_bridge.missions import MissionProtocol
-from sim_bridge.onboard_log import OnboardLog
-from sim_bridge.pacing import Pacer
-from sim_bridge.params import BUILT_IN_FRAME, INT8, NO_FORWARD, Params, stored_value
-from sim_bridge.routing import Router
-from sim_bridge.physics import Harness, Physics
-from sim_bridge.protocol import Protocol
-from sim_bridge.schedule import GROUP_OF, Scheduler
-from sim_bridge.sensors import Sensors
-from sim_bridge.source_messages import source_messages
-from sim_bridge.signing import VehicleSigning
-from sim_bridge.vehicle_faults import LiveFaults, resolve
+from sim_bridge.navigation.avionics import Avionics
+from sim_bridge.transport.faults import LinkFaults
+from sim_bridge.transport.link import Link, open_links
+from sim_bridge.gcs.missions import MissionProtocol
+from sim_bridge.onboard_log.logger import OnboardLog
+from sim_bridge.transport.pacing import Pacer
+from sim_bridge.autopilot.params import BUILT_IN_FRAME, INT8, NO_FORWARD, Params, stored_value
+from sim_bridge.gcs.routing import Router
+from sim_bridge.hardware.physics import Harness, Physics
+from sim_bridge.gcs.protocol import Protocol
+from sim_bridge.gcs.schedule import GROUP_OF, Scheduler
+from sim_bridge.navigation.sensors import Sensors
+from sim_bridge.navigation.source_messages import source_messages
+from sim_bridge.gcs.signing import VehicleSigning
+from sim_bridge.hardware.vehicle_faults import LiveFaults, resolve
 
 MAX_IDLE = 0.05                                   # s: longest sleep between checks for a stop request
 SENSOR_PERIOD = 0.02                              # s: the failsafes' sensors are read at 50 Hz
@@ -122,7 +126,7 @@ class Bridge:
     # -- lifecycle -------------------------------------------------------------------------------------------
 
     def open(self) -> None:
-        """Open every link (LinkError, one line, if one cannot be opened)."""
+        """Open every link (TransportError, one line, if one cannot be opened)."""
         self.links = open_links(list(self.config.endpoints), self.sub.sysid)
         self.signing.attach(self.links)
         self.signing.on_change = lambda text: print(f"sim-bridge: {text}", flush=True)

@@ -1,4 +1,5 @@
-"""Fuzzing the built-in vehicle over real sockets: a bridge process with several links, `sim_bridge.fuzz.Traffic`
+"""Fuzzing the built-in vehicle over real sockets: a bridge process with several links,
+`sim_bridge.transport.fuzz.Traffic`
 written to them, and an independent check that the vehicle came through it (used by tests/test_bridge_fuzz.py and
 tools/fuzz_bridge.py).
 
@@ -27,10 +28,10 @@ from pathlib import Path
 from run_helpers import CHECKER_SYSID, SPEEDUP
 from test_bridge_gcs import RETRY, WAIT, BridgeProcess, Gcs, free_port, mavutil
 
-from sim_bridge.ardusub import MOTOR1, SUPPORTED_MODES
-from sim_bridge.fuzz import SIGNATURE_LEN, SIGNED, STX_V1, STX_V2, Traffic
-from sim_bridge.params import Params
-from sim_bridge.telemetry import NAME_OF_ID
+from sim_bridge.autopilot.ardusub import MOTOR1, SUPPORTED_MODES
+from sim_bridge.transport.fuzz import SIGNATURE_LEN, SIGNED, STX_V1, STX_V2, Traffic
+from sim_bridge.autopilot.params import Params
+from sim_bridge.gcs.telemetry import NAME_OF_ID
 
 mav = mavutil.mavlink
 LINKS = ("udp", "tcp", "udp", "tcp")           # the fuzzed links: 1..4 (a fifth link shares the fourth's rates)

@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.offline.simulation import Trace
 from rov_mav.telemetry import TIMELINE, trace_columns

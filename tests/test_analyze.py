@@ -23,7 +23,7 @@ from telemetry_helpers import read_column, temporal_entities  # noqa: E402
 from test_bridge_clients import MAVPROXY, Console  # noqa: E402
 from test_bridge_gcs import BridgeProcess  # noqa: E402
 
-from rov_mav.flight.runlog import DOF, REPORTED, parse_mission_start  # noqa: E402
+from rov_mav.flight.record.runlog import DOF, REPORTED, parse_mission_start  # noqa: E402
 from rov_mav.mission import metrics as tracking  # noqa: E402
 from rov_mav.mission.missions import load_mission  # noqa: E402
 from rov_mav.review.dive_review import review_dive  # noqa: E402

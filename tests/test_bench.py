@@ -15,7 +15,7 @@ from test_bad_input import assert_one_line, files_under, rov_mav
 from test_bridge_gcs import ROV_MAV
 
 from rov_mav import cli
-from rov_mav.flight.prediction import StatePredictor
+from rov_mav.flight.state.prediction import StatePredictor
 from rov_mav.control.controller import Controller, load_settings
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import load_mission

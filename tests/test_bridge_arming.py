@@ -1,4 +1,5 @@
-"""The built-in vehicle's arming checks, over MAVLink (`sim_bridge.arming`): a failing check refuses the arming
+"""The built-in vehicle's arming checks, over MAVLink (`sim_bridge.autopilot.arming`): a failing check refuses the
+arming
 with FAILED and a CRITICAL "Arm: ..." per failure, as `AP_Arming::arm` does; 4.7's ARMING_SKIPCHK skips a check by
 its bit, 4.5's ARMING_CHECK performs the checks it names, Sub's defaults the RC, voltage and battery checks only;
 param2 = 2989 arms without them, but not past 4.7's throttle-centred check."""

@@ -1,11 +1,11 @@
 """MANUAL_CONTROL's buttons on the built-in vehicle as ArduSub acts on them (ArduSub/joystick.cpp, Sub's default
-button functions; `sim_bridge.buttons`), and the arming check that a button must be able to disarm
+button functions; `sim_bridge.autopilot.buttons`), and the arming check that a button must be able to disarm
 (`AP_Arming_Sub::has_disarm_function`)."""
 
 from __future__ import annotations
 
-from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
-from sim_bridge.params import Params
+from sim_bridge.autopilot.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
+from sim_bridge.autopilot.params import Params
 
 AT_REST = (0, 0, 500, 0, 0, 0)          # x, y, z, r, s, t: sticks centred
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from rov_mav.model.frames import FRAMES, HEAVY, frame_of
-from sim_bridge import mixer
-from sim_bridge.ardusub import ArduSub
-from sim_bridge.params import Params
-from sim_bridge.physics import Harness
-from sim_bridge.telemetry import banner
+from sim_bridge.autopilot import mixer
+from sim_bridge.autopilot.ardusub import ArduSub
+from sim_bridge.autopilot.params import Params
+from sim_bridge.hardware.physics import Harness
+from sim_bridge.gcs.telemetry import banner
 
 T0 = 5.0
 FRAME_STRINGS = {0: "BLUEROV1", 1: "VECTORED", 2: "VECTORED_6DOF", 3: "VECTORED_6DOF_90DEG", 4: "SIMPLEROV_3",

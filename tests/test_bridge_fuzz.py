@@ -11,7 +11,7 @@ from fuzz_helpers import bridge_counters, check_vehicle, fuzz, fuzzed_bridge, re
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from run_helpers import checker
 
-from sim_bridge.params import Params
+from sim_bridge.autopilot.params import Params
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

@@ -13,12 +13,12 @@ from rov_mav.model.environment import Environment
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import load_t200
 from rov_mav.model.vehicle import load_vehicle
-from sim_bridge.ardusub import MODES, ArduSub
-from sim_bridge.battery import Battery
-from sim_bridge.guided import FRAME_BODY_NED, FRAME_LOCAL_NED, sqrt_controller
+from sim_bridge.autopilot.ardusub import MODES, ArduSub
+from sim_bridge.hardware.battery import Battery
+from sim_bridge.autopilot.guided import FRAME_BODY_NED, FRAME_LOCAL_NED, sqrt_controller
 from rov_mav.units import EARTH_RADIUS
-from sim_bridge.params import Params
-from sim_bridge.physics import Physics
+from sim_bridge.autopilot.params import Params
+from sim_bridge.hardware.physics import Physics
 
 STEP = 0.0025
 POS_VEL_YAW = 0x9C0          # acceleration and yaw rate ignored

@@ -1,4 +1,5 @@
-"""MANUAL_CONTROL, the pilot's joystick, as ArduSub 4.7 handles it (4.5.3's channels 9-11 noted where they differ): pymavlink stations over real UDP against the
+"""MANUAL_CONTROL, the pilot's joystick, as ArduSub 4.7 handles it (4.5.3's channels 9-11 noted where they differ):
+pymavlink stations over real UDP against the
 bridge in-process, timed on the vehicle's clock. The hazard: with passthrough outputs (SERVOn_FUNCTION 51..58) a
 station whose joystick is at rest overwrites a controller's eight thruster commands with 1500."""
 

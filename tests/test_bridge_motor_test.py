@@ -11,11 +11,11 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from test_bridge_gcs import BridgeThread, Gcs, mavutil
 
-from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
-from sim_bridge.missions import MissionProtocol
-from sim_bridge.params import Params
-from sim_bridge.protocol import Protocol
-from sim_bridge.schedule import Scheduler
+from sim_bridge.autopilot.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
+from sim_bridge.gcs.missions import MissionProtocol
+from sim_bridge.autopilot.params import Params
+from sim_bridge.gcs.protocol import Protocol
+from sim_bridge.gcs.schedule import Scheduler
 
 PERCENT, PWM, PILOT = 0, 1, 2
 BOARD = 2

@@ -18,13 +18,13 @@ from test_bridge_gcs import ROV_MAV, BridgeThread, Gcs
 from rov_mav.config import ConfigError
 from rov_mav.model.environment import load_environment
 from rov_mav.model.navigation import PRESETS, Dvl, Ugps, load_navigation
-from sim_bridge import navigation as ekf_status
+from sim_bridge.navigation import aiding as ekf_status
 from sim_bridge.config import BridgeConfig
-from sim_bridge.estimator import RETRY_NO_VEL, TAU_OUTPUT, Estimator
-from sim_bridge.sensors import ImuSample, Sensors, UgpsFix
+from sim_bridge.navigation.estimator import RETRY_NO_VEL, TAU_OUTPUT, Estimator
+from sim_bridge.navigation.sensors import ImuSample, Sensors, UgpsFix
 from sim_bridge.server import Bridge
-from sim_bridge.source_messages import DVL_SOURCE, UGPS_SOURCE
-from sim_bridge.telemetry import EARTH_RADIUS
+from sim_bridge.navigation.source_messages import DVL_SOURCE, UGPS_SOURCE
+from sim_bridge.gcs.telemetry import EARTH_RADIUS
 
 STEP = 0.0025
 QUIET = {"FS_PILOT_INPUT": 0, "FS_GCS_ENABLE": 0}

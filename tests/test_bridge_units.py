@@ -10,19 +10,20 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav.model.thrusters import allocation_matrix, load_t200
-from sim_bridge import mixer, telemetry
-from sim_bridge.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
-from sim_bridge.battery import Battery
+from sim_bridge.autopilot import mixer
+from sim_bridge.gcs import telemetry
+from sim_bridge.autopilot.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
+from sim_bridge.hardware.battery import Battery
 from sim_bridge.config import BridgeConfig
-from sim_bridge.joystick import joystick_gain, rc_channels
-from sim_bridge.missions import MissionProtocol
-from sim_bridge.numeric import float_to_int, is_equal, is_zero, wrap
-from sim_bridge.pacing import LatenessHistogram, Pacer
-from sim_bridge.params import INT8, INT16, INT32, REAL32, Params, stored_value
-from sim_bridge.physics import Physics
-from sim_bridge.protocol import Protocol
-from sim_bridge.rc import RCInput
-from sim_bridge.schedule import Scheduler, requested_interval_ms, stream_interval_ms
+from sim_bridge.autopilot.joystick import joystick_gain, rc_channels
+from sim_bridge.gcs.missions import MissionProtocol
+from sim_bridge.hardware.numeric import float_to_int, is_equal, is_zero, wrap
+from sim_bridge.transport.pacing import LatenessHistogram, Pacer
+from sim_bridge.autopilot.params import INT8, INT16, INT32, REAL32, Params, stored_value
+from sim_bridge.hardware.physics import Physics
+from sim_bridge.gcs.protocol import Protocol
+from sim_bridge.autopilot.rc import RCInput
+from sim_bridge.gcs.schedule import Scheduler, requested_interval_ms, stream_interval_ms
 from sim_bridge.server import Bridge
 
 GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
@@ -211,9 +212,9 @@ def test_pilot_input_failsafe_neutralises_1_to_6_and_keeps_7_8():
     sub.rc_override(255, [1600] * 8 + [0] * 10, 0.0)
     sub.arm(True)
     run(sub, 0.0, 2.99)
-    assert sub.armed and not sub.failsafe_pilot
+    assert sub.armed and not sub.failsafes.pilot
     run(sub, 2.99, 3.01)
-    assert sub.failsafe_pilot and not sub.armed and sub.system_status() == 5
+    assert sub.failsafes.pilot and not sub.armed and sub.system_status() == 5
     assert (2, "Lost manual control") in sub.texts
     out = sub.servo_outputs()
     assert np.all(out[:6] == 1500) and np.all(out[6:8] == 1600)
@@ -221,7 +222,7 @@ def test_pilot_input_failsafe_neutralises_1_to_6_and_keeps_7_8():
     assert np.all(sub.servo_outputs()[6:8] == 1600)             # two thrusters keep running
     sub.rc_override(255, [1500] * 8 + [0] * 10, 20.0)
     sub.update(20.01)
-    assert not sub.failsafe_pilot and sub.system_status() == 3
+    assert not sub.failsafes.pilot and sub.system_status() == 3
 
 
 @pytest.mark.parametrize("override_time, after", [(3.0, [1520, 1480, 1500, 1500, 1500, 1500]),
@@ -241,7 +242,7 @@ def test_pilot_input_failsafe_writes_the_trims_into_the_input_until_a_live_overr
     run(sub, 0.0, 2.99)
     assert sub.rc.radio_in[0] == (1500 if override_time == 0 else 1600)
     sub.update(3.0)
-    assert sub.failsafe_pilot and list(sub.rc.radio_in[:2]) == [1520, 1480]
+    assert sub.failsafes.pilot and list(sub.rc.radio_in[:2]) == [1520, 1480]
     run(sub, 3.0, 4.0)
     assert list(sub.rc.radio_in[:6]) == after
     assert list(sub.rc.radio_in[6:8]) == ([1500, 1500] if override_time == 0 else [1600, 1600])
@@ -250,7 +251,7 @@ def test_pilot_input_failsafe_writes_the_trims_into_the_input_until_a_live_overr
 def test_pilot_input_failsafe_fires_at_boot_and_only_once():
     sub = ArduSub(Params())
     run(sub, 0.0, 3.1)
-    assert sub.failsafe_pilot and sub.texts.count((2, "Lost manual control")) == 1
+    assert sub.failsafes.pilot and sub.texts.count((2, "Lost manual control")) == 1
     sub.arm(True)
     run(sub, 3.1, 10.0)
     assert sub.armed and sub.texts.count((2, "Lost manual control")) == 1
@@ -264,12 +265,12 @@ def test_gcs_failsafe_actions(action, armed, mode):
     sub = ArduSub(params)
     sub.arm(True)
     run(sub, 0.0, 40.0)
-    assert sub.armed and not sub.failsafe_gcs                   # no GCS seen yet: no failsafe
+    assert sub.armed and not sub.failsafes.gcs                   # no GCS seen yet: no failsafe
     sub.gcs_heartbeat(255, 40.0)
     run(sub, 40.0, 44.9)
     assert sub.armed
     run(sub, 44.9, 45.4)                                        # 5 s timeout, checked at 3.3 Hz
-    assert (sub.armed, sub.mode, sub.failsafe_gcs) == (armed, mode, True)
+    assert (sub.armed, sub.mode, sub.failsafes.gcs) == (armed, mode, True)
     assert (4, "MYGCS: 255, heartbeat lost") in sub.texts
 
 
@@ -283,7 +284,7 @@ def test_gcs_failsafe_says_nothing_in_the_first_30_s_then_every_30_s_and_4_7_say
     sub.arm(True)
     sub.gcs_heartbeat(255, 0.0)
     run(sub, 0.0, 29.9)
-    assert not sub.armed and sub.failsafe_gcs and sub.texts == []
+    assert not sub.armed and sub.failsafes.gcs and sub.texts == []
     run(sub, 29.9, 30.4)
     assert sub.texts == [(4, "MYGCS: 255, heartbeat lost")]
     run(sub, 30.4, 61.0)
@@ -291,7 +292,7 @@ def test_gcs_failsafe_says_nothing_in_the_first_30_s_then_every_30_s_and_4_7_say
     sub.gcs_heartbeat(255, 61.0)
     run(sub, 61.0, 62.0)
     cleared = [(4, "GCS Failsafe Cleared")] if firmware == "4.7" else []
-    assert sub.texts[2:] == cleared and not sub.failsafe_gcs
+    assert sub.texts[2:] == cleared and not sub.failsafes.gcs
 
 
 def test_override_from_the_gcs_counts_as_heartbeat_and_others_do_not():
@@ -613,7 +614,7 @@ def test_manual_control_only_from_the_gcs_to_this_vehicle(firmware, lights):
     sub.update(1.0)
     assert list(sub.rc.radio_in[:8]) == [1500, 1500, 1500, 1500, 1540, 1500, 1500, 1500]
     assert list(sub.rc.radio_in[8:11]) == (lights if firmware == "4.5" else [1234] * 3)
-    assert not sub.failsafe_pilot
+    assert not sub.failsafes.pilot
     params.set("FS_PILOT_INPUT", 0)
     sub.rc.radio_in[4] = 1234                   # still overridden just before RC_OVERRIDE_TIME (3 s) has passed,
     sub.update(3.9)

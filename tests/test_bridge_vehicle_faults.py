@@ -23,13 +23,14 @@ from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import thruster_curve
 from rov_mav.model.vehicle import load_vehicle
 from rov_mav.model.vehicle_faults import parse_vehicle_faults
-from sim_bridge import boot, navigation
-from sim_bridge.ardusub import MODES, ArduSub
-from sim_bridge.battery import Battery
+from sim_bridge.hardware import boot
+from sim_bridge.navigation import aiding as navigation
+from sim_bridge.autopilot.ardusub import MODES, ArduSub
+from sim_bridge.hardware.battery import Battery
 from sim_bridge.config import BridgeConfig
-from sim_bridge.failsafes import Sensors
-from sim_bridge.params import Params
-from sim_bridge.physics import Physics
+from sim_bridge.autopilot.failsafes import Readings
+from sim_bridge.autopilot.params import Params
+from sim_bridge.hardware.physics import Physics
 from sim_bridge.server import Bridge
 
 mav = mavutil.mavlink
@@ -101,7 +102,7 @@ def vehicle(firmware: str = "4.7", **params) -> ArduSub:
     return ArduSub(p)
 
 
-def run(sub: ArduSub, t0: float, t1: float, sensors: Sensors, state=None) -> None:
+def run(sub: ArduSub, t0: float, t1: float, sensors: Readings, state=None) -> None:
     for k in range(round((t1 - t0) / STEP)):
         sub.update(t0 + k * STEP, state, sensors)
 
@@ -112,7 +113,7 @@ def texts(sub: ArduSub) -> list[str]:
 
 def test_leak_warns_every_20_s_of_uptime_and_surfaces_only_if_armed_when_first_found():
     sub = vehicle(FS_LEAK_ENABLE=2)
-    wet = Sensors(leak=True)
+    wet = Readings(leak=True)
     sub.arm(True)
     run(sub, 0.0, 19.9, wet)
     assert sub.mode == MODES["SURFACE"] and sub.failsafes.leak          # acted at once ...
@@ -135,13 +136,13 @@ def test_leak_warns_every_20_s_of_uptime_and_surfaces_only_if_armed_when_first_f
 def test_leak_makes_heartbeat_critical_in_47_not_in_45():
     for firmware, status in (("4.7", mav.MAV_STATE_CRITICAL), ("4.5", mav.MAV_STATE_STANDBY)):
         sub = vehicle(firmware)
-        run(sub, 0.0, 1.0, Sensors(leak=True))
+        run(sub, 0.0, 1.0, Readings(leak=True))
         assert sub.system_status() == status, firmware
 
 
 def test_battery_low_after_its_timer_then_critical_surfaces_with_its_text():
     sub = vehicle(BATT_LOW_VOLT=14.0, BATT_CRT_VOLT=13.0, BATT_LOW_TIMER=2, BATT_FS_LOW_ACT=1, BATT_FS_CRT_ACT=3)
-    low = Sensors(voltage=13.5, consumed_mah=1234.4)
+    low = Readings(voltage=13.5, consumed_mah=1234.4)
     run(sub, 0.0, 5.0, low)
     assert sub.failsafes.battery == 0 and not sub.texts                 # disarmed: the monitor does not check
     sub.arm(True, checks=False)                                         # forced: the arming checks see it low
@@ -150,34 +151,34 @@ def test_battery_low_after_its_timer_then_critical_surfaces_with_its_text():
     run(sub, 7.0, 7.3, low)
     assert texts(sub) == ["Battery 1 is low 13.50V used 1234 mAh"] and sub.texts[0][0] == WARNING
     assert sub.mode == MODES["MANUAL"] and sub.system_status() == mav.MAV_STATE_CRITICAL
-    run(sub, 7.3, 10.0, Sensors(voltage=12.5, consumed_mah=1300))
+    run(sub, 7.3, 10.0, Readings(voltage=12.5, consumed_mah=1300))
     assert texts(sub)[-1] == "Battery 1 is critical 12.50V used 1300 mAh" and sub.mode == MODES["SURFACE"]
-    run(sub, 10.0, 12.0, Sensors(voltage=16.0))                         # voltage back: still failsafed
+    run(sub, 10.0, 12.0, Readings(voltage=16.0))                         # voltage back: still failsafed
     assert sub.failsafes.battery_failsafed and sub.system_status() == mav.MAV_STATE_CRITICAL
 
 
 def test_battery_actions_follow_their_priority_and_capacity_acts_at_once():
     sub = vehicle(BATT_LOW_MAH=5000, BATT_CRT_MAH=2000, BATT_FS_LOW_ACT=2, BATT_FS_CRT_ACT=3)
     sub.arm(True)
-    run(sub, 0.0, 0.2, Sensors(consumed_mah=13500))                     # 4500 mAh left: low at once, disarm
+    run(sub, 0.0, 0.2, Readings(consumed_mah=13500))                     # 4500 mAh left: low at once, disarm
     assert not sub.armed and "Battery 1 is low" in texts(sub)[0]
     sub.arm(True, checks=False)                                         # forced: the arming checks see it low
-    run(sub, 0.2, 0.4, Sensors(consumed_mah=16500))                     # critical: SURFACE ranks below disarm
+    run(sub, 0.2, 0.4, Readings(consumed_mah=16500))                     # critical: SURFACE ranks below disarm
     assert "critical" in texts(sub)[-1] and sub.mode == MODES["MANUAL"] and sub.armed
 
 
 def test_ekf_failsafe_after_2_s_of_bad_variance_warns_after_20_s_of_uptime_and_disarms_with_action_2():
     sub = vehicle(FS_EKF_ACTION=2)
     sub.arm(True)
-    bad = Sensors(velocity_variance=0.9)
+    bad = Readings(velocity_variance=0.9)
     run(sub, 0.0, 1.9, bad)
     assert sub.armed and not sub.failsafes.ekf
     run(sub, 1.9, 2.2, bad)
     assert not sub.armed and sub.failsafes.ekf and "EKF bad" not in texts(sub)   # no text in the first 20 s
-    run(sub, 2.2, 3.0, Sensors())
+    run(sub, 2.2, 3.0, Readings())
     assert not sub.failsafes.ekf
     sub.arm(True)
-    run(sub, 30.0, 32.5, Sensors(compass_variance=0.8))                  # at the threshold counts as bad
+    run(sub, 30.0, 32.5, Readings(compass_variance=0.8))                  # at the threshold counts as bad
     assert (WARNING, "EKF bad") in sub.texts and not sub.armed
     off = vehicle()                                                     # default FS_EKF_ACTION 0: nothing
     off.arm(True)
@@ -190,7 +191,7 @@ def test_depth_sensor_failure_reports_once_and_leaves_depth_modes_for_manual():
     state = (np.array([0, 0, 5.0, 0, 0, 0]), np.zeros(6))
     assert sub.set_mode(MODES["ALT_HOLD"])
     sub.arm(True)
-    run(sub, 0.0, 1.0, Sensors(depth_healthy=False), state)
+    run(sub, 0.0, 1.0, Readings(depth_healthy=False), state)
     assert sub.mode == MODES["MANUAL"] and sub.texts.count((CRITICAL, "Depth sensor error!")) == 1
     assert sub.system_status() == mav.MAV_STATE_CRITICAL                # 4.7: sensor_health is a failsafe
     sub.texts.clear()
@@ -198,7 +199,7 @@ def test_depth_sensor_failure_reports_once_and_leaves_depth_modes_for_manual():
     assert texts(sub) == ["Depth sensor error.", "Flight mode change failed ALT_HOLD"]
     assert sub.set_mode(MODES["STABILIZE"])
     gone = vehicle()                                                    # none found at boot: no failsafe at all
-    run(gone, 0.0, 1.0, Sensors(depth_healthy=False, depth_present=False))
+    run(gone, 0.0, 1.0, Readings(depth_healthy=False, depth_present=False))
     assert not gone.texts and not gone.set_mode(MODES["ALT_HOLD"])
     assert texts(gone) == ["Depth sensor is not connected.", "Flight mode change failed ALT_HOLD"]
 
@@ -216,7 +217,7 @@ def test_position_modes_need_the_ekf_position():
 # -- SURFACE ---------------------------------------------------------------------------------------------------
 
 
-def surface_flight(firmware: str, seconds: float, sensors: Sensors = Sensors(), depth: float = 3.0):
+def surface_flight(firmware: str, seconds: float, sensors: Readings = Readings(), depth: float = 3.0):
     vehicle_ = load_vehicle()
     plant = Plant(vehicle_, eta0=np.array([0, 0, depth, 0, 0, 0.0]))
     physics = Physics(vehicle_, plant, Battery(), thruster_curve(vehicle_), STEP)
@@ -242,7 +243,7 @@ def test_surface_rises_and_holds_depth_at_the_surface_in_alt_hold():
 
 
 def test_surface_without_a_depth_sensor_refused_in_45_and_rises_on_its_thrust_in_47():
-    none = Sensors(depth_present=False)
+    none = Readings(depth_present=False)
     entered, sub, _, _ = surface_flight("4.5", 0.1, none)
     assert not entered and texts(sub)[-2:] == ["Depth sensor is not connected.", "Flight mode change failed SURFACE"]
     entered, sub, plant, modes = surface_flight("4.7", 6.0, none)
@@ -255,7 +256,7 @@ def test_surface_without_a_depth_sensor_refused_in_45_and_rises_on_its_thrust_in
 
 
 def test_navigation_stages_and_return():
-    nav = navigation.Navigation()
+    nav = navigation.Aiding()
     measured = (np.array([3.0, 4.0, 5.0, 0, 0, 0.2]), np.array([0.5, 0.1, 0, 0, 0, 0]))
     changes = []                                                        # (flags, t, eta, nu, variances)
     for k in range(round(30.0 / STEP)):
@@ -271,7 +272,7 @@ def test_navigation_stages_and_return():
     assert nav.texts == [(WARNING, "EKF3 IMU0 stopped aiding"), (INFO, "EKF3 IMU0 is using external nav data"),
                          (INFO, "EKF3 IMU0 initial pos NED = 3.0,4.0,5.0 (m)")]
     assert nav.position_ok(29.0, armed=True)
-    fresh = navigation.Navigation(navigation_ok=False)                  # booted without it: AID_NONE, silent
+    fresh = navigation.Aiding(navigation_ok=False)                  # booted without it: AID_NONE, silent
     fresh.update(0.0, False, True, measured)
     assert fresh.flags(0.0) == 165 and not fresh.texts and not fresh.position_ok(0.0, armed=False)
 

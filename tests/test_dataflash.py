@@ -14,7 +14,7 @@ from test_bridge_protocol import SPEEDUP
 
 from rov_mav.review.dataflash_records import read_records
 from rov_mav.review.dive_review import review_dive
-from sim_bridge.dataflash import FORMATS, record
+from sim_bridge.onboard_log.dataflash import FORMATS, record
 
 QUIET = {"FS_PILOT_INPUT": 0, "FS_GCS_ENABLE": 0}
 
@@ -115,7 +115,7 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
     """ArduSub 4.0-era layouts (ATT in centidegrees with ErrRP/ErrYaw, EKF2's NKF1 without a core field, BAT
     without an instance, PARM without a default, EV for arming, RCOU's 14 channels), other type ids: the reader goes
     by each file's FMT records and the fields' labels."""
-    from sim_bridge.dataflash import FMT, Format
+    from sim_bridge.onboard_log.dataflash import FMT, Format
 
     from rov_mav.review.dataflash_log import read_dataflash_dive
     from rov_mav.review.tlog import ReadReport
@@ -160,7 +160,7 @@ def test_an_older_ardusub_log_is_read_through_its_own_formats(tmp_path):
 def test_a_log_that_cannot_be_written_stops_with_one_line_and_the_vehicle_flies_on(tmp_path, capsys):
     """The log the arming opens is /dev/full, which takes no byte: the first flush fails; the bridge says so once
     and goes on, and closes without a second complaint."""
-    from sim_bridge.onboard_log import OnboardLog
+    from sim_bridge.onboard_log.logger import OnboardLog
 
     (tmp_path / "00000001.BIN").symlink_to("/dev/full")       # a disk that is full under the vehicle
     log = OnboardLog(tmp_path)

@@ -1,4 +1,4 @@
-"""A pilot's DataFlash dive as identification data (`offline.dive_runs`): the motors found through the log's
+"""A pilot's DataFlash dive as identification data (`offline.identify.dive_runs`): the motors found through the log's
 SERVOn_FUNCTION and MOT_k_DIRECTION, the dive's own motion as its reference, and which DOFs it moved."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import pytest
 from rov_mav.config import ConfigError
 from rov_mav.model.dynamics import body_velocity
 from rov_mav.model.frames import FRAMES
-from rov_mav.offline.dive_runs import excitation, motor_directions, motor_outputs, motor_pwm, own_reference
+from rov_mav.offline.identify.dive_runs import excitation, motor_directions, motor_outputs, motor_pwm, own_reference
 
 STANDARD, HEAVY = FRAMES[1], FRAMES[2]
 

@@ -2,7 +2,8 @@
 option of the real parser, the README front page stays a front page, and the pages render in a browser with the
 equations typeset.
 
-The site is built once per session (about 5 s; the file takes about 10 s); the browser checks need Debian's `chromium` and `chromium-driver`
+The site is built once per session (about 5 s; the file takes about 10 s); the browser checks need Debian's `chromium`
+and `chromium-driver`
 (.ci/run installs them) and fail, not skip, without them.
 """
 
@@ -243,8 +244,8 @@ def test_options_named_in_the_manual_exist():
 def test_run_help_names_every_exit_status_the_runner_returns():
     """`rov-mav run --help` lists each exit status the runner can return, read from the constants it returns."""
     from rov_mav.commands.run import EPILOG
-    from rov_mav.flight.thruster_watch import EXIT_THRUSTER
-    from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT
+    from rov_mav.flight.run.thruster_watch import EXIT_THRUSTER
+    from rov_mav.flight.session.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT
 
     statuses = " ".join(EPILOG.split()).split("exit status:")[1]
     for code in (0, 1, 2, 3, EXIT_THRUSTER, EXIT_REBOOT, EXIT_FAILSAFE):

@@ -1,4 +1,4 @@
-"""The runner's estimate blend (`flight.estimate_blend`): motion the velocity shows passes at once, the position's
+"""The runner's estimate blend (`flight.state.estimate_blend`): motion the velocity shows passes at once, the position's
 corrections below the bandwidth, and a velocity bias is learnt away."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rov_mav.flight.estimate_blend import BIAS_RATIO, EstimateBlend
+from rov_mav.flight.state.estimate_blend import BIAS_RATIO, EstimateBlend
 
 DT = 0.02
 

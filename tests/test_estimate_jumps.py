@@ -1,4 +1,5 @@
-"""A position estimate that jumps is taken in at a flyable pace (`flight.estimate_jumps`), and motion is not a jump: on
+"""A position estimate that jumps is taken in at a flyable pace (`flight.state.estimate_jumps`), and motion is not a
+jump: on
 steps, and on what the built-in vehicle's EKF3 stand-in reports."""
 
 from __future__ import annotations
@@ -8,10 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rov_mav.flight.estimate_jumps import CATCH_ACCEL, CATCH_UP, EstimateJumps, catch_up_time
+from rov_mav.flight.state.estimate_jumps import CATCH_ACCEL, CATCH_UP, EstimateJumps, catch_up_time
 from rov_mav.model.navigation import PRESETS, Ugps
-from sim_bridge.estimator import Estimator
-from sim_bridge.sensors import ImuSample, Sensors, UgpsFix, rot
+from sim_bridge.navigation.estimator import Estimator
+from sim_bridge.navigation.sensors import ImuSample, Sensors, UgpsFix, rot
 
 
 def _fly(positions, velocities, dt=0.02):
@@ -59,7 +60,8 @@ def _vehicle_estimate(nav, seconds: float, feed) -> tuple[np.ndarray, np.ndarray
 
 def test_a_fix_after_a_dropout_spread_by_the_ekfs_output_predictor_is_one_jump_taken_in_at_the_pace():
     """10 s without a fix on a biased accelerometer (0.6 m of drift), then a fix at the truth: EKF3's output
-    predictor brings the 0.6 m in over about 0.25 s (`sim_bridge.estimator`), no single sample a large step. It is
+    predictor brings the 0.6 m in over about 0.25 s (`sim_bridge.navigation.estimator`), no single sample a large step.
+    It is
     one jump, and the law sees the estimate move beyond its own velocity at the catch-up pace at most."""
     nav = replace(PRESETS["ugps"], ugps=replace(Ugps(outlier_probability=0.0, dropout_probability=0.0),
                                                 ekf_delay=0.2))

@@ -28,18 +28,18 @@ from rov_mav import cli
 from rov_mav.config import ConfigError
 from rov_mav.commands.identify import load_run
 from rov_mav.control.controller import Controller, load_settings
-from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.runlog import RunLog
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.record.runlog import RunLog
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.mission.missions import load_mission
 from rov_mav.model.environment import Environment
 from rov_mav.model.plant import Plant
 from rov_mav.model.thrusters import Allocator, thruster_curve
 from rov_mav.model.vehicle import Vehicle, load_vehicle, save_vehicle
-from rov_mav.offline.identification import falling_zero, identify
-from rov_mav.offline.prediction_check import compare, impossible, split
-from sim_bridge.battery import Battery
-from sim_bridge.physics import Physics
+from rov_mav.offline.identify.identification import falling_zero, identify
+from rov_mav.offline.identify.prediction_check import compare, impossible, split
+from sim_bridge.hardware.battery import Battery
+from sim_bridge.hardware.physics import Physics
 
 IDENTIFY = MISSIONS / "identify.yaml"
 TOLERANCE = 0.05            # relative, clean logs

@@ -93,3 +93,43 @@ def test_imports_point_down(module, path):
                 f"{module} imports {target} ({target_layer}), above or beside its layer {layer}"
         if layer in CORE:
             assert top not in SHELL_LIBRARIES, f"{module} (core layer {layer}) imports the shell library {top}"
+
+
+# The rooms of the two largest layers, from the bottom up: a module in a room imports only its own room and the
+# rooms listed before it; a module at the package's root (the assembly) may import any of its rooms.
+ROOMS = {
+    "rov_mav.flight": ("record", "session", "state", "thrusters", "run"),
+    "sim_bridge": ("hardware", "autopilot", "gcs", "navigation", "onboard_log", "transport"),
+}
+
+
+def _room(package: str, module: str) -> int | None:
+    """The rank of `module`'s room in `package` (None: the package's root, or another package)."""
+    if not module.startswith(package + "."):
+        return None
+    name = module[len(package) + 1:].split(".")[0]
+    return ROOMS[package].index(name) if name in ROOMS[package] else None
+
+
+@pytest.mark.parametrize("package", list(ROOMS))
+def test_every_module_of_a_roomed_package_is_in_a_room_or_its_root_assembly(package):
+    base = ROOT.joinpath(*package.split("."))
+    stray = [p.name for p in base.iterdir() if p.is_dir() and (p / "__init__.py").exists()
+             and p.name not in ROOMS[package]]
+    assert not stray, f"{package}: sub-packages {stray} are in no room order (tests/test_layers.py ROOMS)"
+
+
+@pytest.mark.parametrize("module,path", [(m, p) for m, p in _modules() if any(m.startswith(k + ".") for k in ROOMS)],
+                         ids=lambda v: v if isinstance(v, str) else "")
+def test_rooms_import_only_the_rooms_below_them(module, path):
+    package = next(k for k in ROOMS if module.startswith(k + "."))
+    rank = _room(package, module)
+    if rank is None:
+        return                                   # the root's assembly (sim_bridge.server, .process, .config)
+    for target in _imports(path):
+        if not target.startswith(package + "."):
+            continue
+        other = _room(package, target)
+        assert other is not None, f"{module} ({ROOMS[package][rank]}) imports the package's assembly: {target}"
+        assert other <= rank, \
+            f"{module} ({ROOMS[package][rank]}) imports {target} ({ROOMS[package][other]}), a room above it"

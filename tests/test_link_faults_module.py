@@ -1,4 +1,5 @@
-"""The bridge's link faults (sim_bridge/faults.py) as statistics over many messages with a seeded generator: the loss
+"""The bridge's link faults (sim_bridge/transport/faults.py) as statistics over many messages with a seeded generator:
+the loss
 and duplication ratios, delays and their order, reordering, a cut, dropped types; and the option's validation."""
 
 from __future__ import annotations
@@ -9,7 +10,8 @@ import random
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.faults import REORDER_HOLD, Direction, FaultError, FaultSpec, load_faults, message_id, parse_faults
+from sim_bridge.transport.faults import (REORDER_HOLD, Direction, FaultError, FaultSpec, load_faults, message_id,
+                                         parse_faults)
 
 N = 20000
 PERIOD = 0.02            # vehicle s between messages: a 50 Hz stream

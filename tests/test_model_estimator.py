@@ -1,4 +1,4 @@
-"""The run's own model-aided estimator (`flight.model_estimator`) against a simulated vehicle: the shared compiled
+"""The run's own model-aided estimator (`flight.state.model_estimator`) against a simulated vehicle: the shared compiled
 plant under a known wrench, a body disturbance and a current, acoustic fixes that are noisy and 0.4 s late, the
 Bar30's depth. What it must do: beat the fixes it is given by a wide margin, learn the force and the current the
 model does not know, fuse a late fix at its own time, refuse an outlier, take in a lasting jump after RESET_AFTER at
@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from rov_mav.flight import model_estimator as me
+from rov_mav.flight.state import model_estimator as me
 from rov_mav.model import kernel
 from rov_mav.model.environment import Environment
 from rov_mav.model.vehicle import load_vehicle

@@ -1,4 +1,5 @@
-"""The state prediction (model.kernel.predict, observe_disturbance; flight.prediction): against the model integrated
+"""The state prediction (model.kernel.predict, observe_disturbance; flight.state.prediction): against the model
+integrated
 finely, the disturbance it learns against the true one, the runner's shell against the kernel, and the closed loop
 it makes possible through delay."""
 
@@ -11,7 +12,7 @@ import pytest
 from conftest import MISSIONS
 
 from rov_mav.control.controller import load_settings
-from rov_mav.flight.prediction import StatePredictor
+from rov_mav.flight.state.prediction import StatePredictor
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import load_mission
 from rov_mav.model import kernel

@@ -245,8 +245,8 @@ def test_identify_on_a_pilots_dive_fits_what_it_moved_and_never_writes_a_vehicle
     no worse than the prior and is possible; else nothing is written and one line says why."""
     from rov_mav.commands.identify import _checked, _dofs, load_dataflash_run
     from rov_mav.model.vehicle import load_vehicle
-    from rov_mav.offline.identification import identify
-    from rov_mav.offline.prediction_check import DECIDING, impossible
+    from rov_mav.offline.identify.identification import identify
+    from rov_mav.offline.identify.prediction_check import DECIDING, impossible
     from rov_mav.shipped import listing
 
     path = str(Path(FOLDER) / "mohai-2023-10-18-00000016.BIN")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.routing import Router, targets
+from sim_bridge.gcs.routing import Router, targets
 
 LINKS = [0, 1, 2]
 

@@ -17,7 +17,7 @@ from run_helpers import (
     watch_run,
 )
 
-from rov_mav.flight.vehicle_frame import banner_frame, find_motors
+from rov_mav.flight.session.vehicle_frame import banner_frame, find_motors
 from rov_mav.model.frames import FRAMES, HEAVY
 
 HEAVY_FILE = "BlueROV2 Heavy"

@@ -20,7 +20,7 @@ from run_helpers import (
     servo_outputs,
 )
 
-from rov_mav.flight.link import GUIDED, MANUAL
+from rov_mav.flight.session.link import GUIDED, MANUAL
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

@@ -28,7 +28,7 @@ from run_helpers import (
 )
 
 from rov_mav import cli
-from rov_mav.flight.link import mavlink
+from rov_mav.flight.session.link import mavlink
 from rov_mav.mission.missions import load_mission
 from rov_mav.review.dive import DiveRecorder
 from rov_mav.review.dive_review import review_dive

@@ -89,7 +89,8 @@ def test_without_a_position_source_the_run_refuses_in_one_line_and_touches_nothi
 
 def test_on_its_own_estimate_the_run_is_nearer_the_truth_than_on_the_vehicle_estimate(
         tmp_path, square_on_the_vehicle_estimate):
-    """`--estimator model` on acoustic fixes: the run's own model-aided estimate (`flight.model_estimator`), fed by
+    """`--estimator model` on acoustic fixes: the run's own model-aided estimate (`flight.state.model_estimator`), fed
+    by
     the UGPS driver's GPS_INPUT on the link, is nearer the truth than the vehicle's EKF over the same run, and the run
     flying on it is nearer the truth than the same square flown on the vehicle's estimate."""
     code, output, ran, _ = _fly(tmp_path, SQUARE.replace("NAVIGATION", "ugps"), "--estimator", "model")

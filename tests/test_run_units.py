@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.history import History
-from rov_mav.flight.link import mavlink
-from rov_mav.flight.stations import ECHO_MEMORY, OverrideEcho, Sighting, StationWatch, judge
-from rov_mav.flight.vehicle_clock import VehicleClock
-from rov_mav.flight.vehicle_state import StateDecoder
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.record.history import History
+from rov_mav.flight.session.link import mavlink
+from rov_mav.flight.session.stations import ECHO_MEMORY, OverrideEcho, Sighting, StationWatch, judge
+from rov_mav.flight.session.vehicle_clock import VehicleClock
+from rov_mav.flight.state.vehicle_state import StateDecoder
 from rov_mav.mission.approach import approach
 from rov_mav.model import dynamics
 from rov_mav.model.thrusters import load_t200

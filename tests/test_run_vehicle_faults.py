@@ -170,7 +170,8 @@ def test_a_lost_position_or_depth_sensor_ends_the_run_naming_it(tmp_path, fault,
 def test_a_vehicle_that_refuses_to_arm_is_left_as_found_and_the_run_says_why(tmp_path):
     """No depth sensor from boot, on a vehicle set to check its barometer too (Sub's defaults do not: ARMING_SKIPCHK
     = ~(RC | VOLTAGE | BATTERY); here ~(BARO | RC | VOLTAGE | BATTERY)): ArduSub's arming checks refuse ("Arm: Baro:
-    not healthy", `sim_bridge.arming`); the run stops naming the vehicle's reason, and the outputs it had switched to
+    not healthy", `sim_bridge.autopilot.arming`); the run stops naming the vehicle's reason, and the outputs it had
+    switched to
     passthrough are restored."""
     mission = short_mission(tmp_path, goto_x=LONG)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1", "--vehicle-faults", "depth-sensor@0s",

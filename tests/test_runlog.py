@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rov_mav.flight.runlog import RunLog
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.record.runlog import RunLog
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.mission.metrics import run_metrics
 from rov_mav.review.logdir import read_run_folder
 

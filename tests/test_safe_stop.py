@@ -10,14 +10,14 @@ from types import SimpleNamespace
 
 import pytest
 
-from rov_mav.flight.link import MANUAL, NEUTRAL, mavlink
-from rov_mav.flight.outputs import Guided, MotorTest, Passthrough
-from rov_mav.flight.prediction import RoundTrip
-from rov_mav.flight.run_io import RunIO
-from rov_mav.flight.run_options import HandOver, RunOptions
-from rov_mav.flight import safe_stop
-from rov_mav.flight.safe_stop import SafeStop
-from rov_mav.flight.vehicle_changes import VehicleChanges
+from rov_mav.flight.session.link import MANUAL, NEUTRAL, mavlink
+from rov_mav.flight.run.outputs import Guided, MotorTest, Passthrough
+from rov_mav.flight.session.vehicle_clock import RoundTrip
+from rov_mav.flight.run.run_io import RunIO
+from rov_mav.flight.run.run_options import HandOver, RunOptions
+from rov_mav.flight.run import safe_stop
+from rov_mav.flight.run.safe_stop import SafeStop
+from rov_mav.flight.session.vehicle_changes import VehicleChanges
 
 GUIDED_MODE = 4
 FUNCTIONS = {f"SERVO{n}_FUNCTION": (float(32 + n), 4) for n in range(1, 9)}

@@ -118,8 +118,8 @@ def test_a_setup_signing_timestamp_near_2_to_the_64_wraps_as_a_uint64():
     overflowed pymavlink's 64-bit pack, in the bridge's telemetry loop, and killed it."""
     from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-    from sim_bridge.link import Link
-    from sim_bridge.signing import VehicleSigning
+    from sim_bridge.transport.link import Link
+    from sim_bridge.gcs.signing import VehicleSigning
 
     link = Link(f"udpout:127.0.0.1:{free_port()}", 1, 1)
     try:

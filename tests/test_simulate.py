@@ -161,7 +161,8 @@ def test_plant_params_mismatch_changes_the_run(tmp_path, vehicle, line):
 
 def test_on_a_missions_navigation_the_offline_law_flies_the_built_in_vehicles_estimate(vehicle):
     """`environment: navigation: ugps`: simulate measures the state with the errors of the built-in vehicle's
-    estimator along the mission as a run meets it (`sim_bridge.estimate_errors`, `flight.law_view`), so the true vehicle strays
+    estimator along the mission as a run meets it (`sim_bridge.navigation.estimate_errors`,
+    `flight.state.estimate_shaping`), so the true vehicle strays
     from the path as far as the estimate does; the same seed flies the same run, another seed another."""
     from rov_mav.commands.common import navigation_errors
 

@@ -1,4 +1,5 @@
-"""Judging a telemetry stream before arming (rov_mav/flight/stream_rate.py): what the vehicle sends is read through a
+"""Judging a telemetry stream before arming (rov_mav/flight/session/stream_rate.py): what the vehicle sends is read
+through a
 30 % loss, duplicates and reordering; a vehicle that sends too slowly, or a link that loses too much, is refused."""
 
 from __future__ import annotations
@@ -7,7 +8,7 @@ import random
 
 import numpy as np
 
-from rov_mav.flight.stream_rate import measure, too_slow
+from rov_mav.flight.session.stream_rate import measure, too_slow
 
 ASKED = 50.0
 

@@ -12,7 +12,7 @@ import yaml
 from test_thrusters import ARDUSUB_FACTORS, FORWARD, LATERAL, PITCH, ROLL, THROTTLE, YAW
 
 from rov_mav.config import ConfigError
-from rov_mav.flight.actuation import Actuation
+from rov_mav.flight.thrusters.actuation import Actuation
 from rov_mav.model.thrusters import Allocator, ThrusterMap, allocation_matrix, load_t200, thruster_curve
 from rov_mav.model.vehicle import QuadraticCurve, default_vehicle_path, load_vehicle, save_vehicle
 
@@ -125,7 +125,8 @@ def test_actuation_on_the_quadratic_law_caps_each_thruster(sitl_vehicle):
 @pytest.mark.parametrize("curve, pattern", [
     ({"quadratic": {"max_thrust": -1.0}}, r"thrusters.curve.*greater than 0"),
     ({"quadratic": {"max_thrust": 50.0, "dead_band": [1510, 1525]}}, r"thrusters.curve.*dead_band must hold 1500"),
-    ({"quadratic": {"max_thrust": [50.0, 50.0]}}, r"thrusters.curve"),
+    ({"quadratic": {"max_thrust": [50.0, 50.0]}},
+     r"thrusters: curve.quadratic.max_thrust lists 2 thrusters, positions 8"),
     ("cubic", r"thrusters.curve"),
 ])
 def test_bad_curve_is_one_line(tmp_path, curve, pattern):

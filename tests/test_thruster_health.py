@@ -1,4 +1,5 @@
-"""The runner's thruster watch: the estimate (`flight.thruster_health`) on a closed loop of the real law, allocation
+"""The runner's thruster watch: the estimate (`flight.thrusters.thruster_health`) on a closed loop of the real law,
+allocation
 and plant with a thruster failing inside the plant, and the allocation around a thruster (`Actuation.set_gain`)."""
 
 from __future__ import annotations
@@ -7,8 +8,8 @@ import numpy as np
 import pytest
 
 from rov_mav.control.controller import Controller, load_settings
-from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.thruster_health import EVIDENCE, SETTLE, ThrusterHealth
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.thrusters.thruster_health import EVIDENCE, SETTLE, ThrusterHealth
 from rov_mav.mission.loader import load
 from rov_mav.model.environment import Environment
 from rov_mav.model.plant import Plant

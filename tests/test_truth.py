@@ -1,4 +1,4 @@
-"""The true position a simulator puts on the link (`flight.truth`), and the metrics against it."""
+"""The true position a simulator puts on the link (`flight.session.truth`), and the metrics against it."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.flight.truth import Truth
+from rov_mav.flight.session.truth import Truth
 from rov_mav.mission.metrics import truth_metrics
 from rov_mav.units import EARTH_RADIUS
 

@@ -1,12 +1,13 @@
-"""What the vehicle says about itself that ends a run (`flight.vehicle_events`), and a reboot seen on its clock."""
+"""What the vehicle says about itself that ends a run (`flight.session.vehicle_events`), and a reboot seen on its
+clock."""
 
 from __future__ import annotations
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.flight.vehicle_clock import VehicleClock
-from rov_mav.flight.vehicle_events import failsafe_text, position_lost
+from rov_mav.flight.session.vehicle_clock import VehicleClock
+from rov_mav.flight.session.vehicle_events import failsafe_text, position_lost
 
 
 @pytest.mark.parametrize("text, name, stop", [

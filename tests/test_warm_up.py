@@ -1,4 +1,4 @@
-"""The run's warm-up (`flight.runner.warm_up`) compiles, before the run takes the vehicle, every compiled kernel the
+"""The run's warm-up (`flight.run.runner.warm_up`) compiles, before the run takes the vehicle, every compiled kernel the
 flight will call: a first call in flight costs seconds on a fresh install (the kernels' compilation), with the
 thrusters holding their last command meanwhile."""
 
@@ -13,14 +13,15 @@ pytestmark = pytest.mark.process      # starts a process or the bridge (tests/co
 
 PROBE = """
 from rov_mav.control.controller import Controller, load_settings
-from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.runner import warm_up
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.run.runner import warm_up
 from rov_mav.mission.missions import load_mission
 from rov_mav.model import kernel
 from rov_mav.model.vehicle import load_vehicle
 from rov_mav.shipped import resolve
 vehicle = load_vehicle()
-warm_up(load_mission(resolve("mission", "square")), Controller(vehicle, load_settings("fuzzy", None)), Actuation(vehicle, 40.0), 0.02,
+warm_up(load_mission(resolve("mission", "square")), Controller(vehicle, load_settings("fuzzy", None)),
+Actuation(vehicle, 40.0), 0.02,
         0.2, own_estimate={own})
 print(len(kernel.state_derivative.signatures), len(kernel.predict.signatures))
 """

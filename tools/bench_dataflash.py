@@ -72,7 +72,8 @@ def stage(name: str, path: Path, out: Path) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--log", type=Path, help=f"a .BIN (default: {DEFAULT_LOG} in ROVMAV_REAL_LOGS)")
-    parser.add_argument("--megabytes", type=float, default=100.0, help="length of the long log (default 100; 0: the log as it is)")
+    parser.add_argument("--megabytes", type=float, default=100.0,
+                        help="length of the long log (default 100; 0: the log as it is)")
     args = parser.parse_args()
     source = args.log or Path(os.environ.get("ROVMAV_REAL_LOGS", ROOT.parent / "shared" / "logs")) / DEFAULT_LOG
     if not source.is_file():

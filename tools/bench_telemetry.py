@@ -22,9 +22,9 @@ import numpy as np
 
 from rov_mav import telemetry
 from rov_mav.control.controller import Controller, load_settings
-from rov_mav.flight.actuation import Actuation
-from rov_mav.flight.prediction import StatePredictor
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.state.prediction import StatePredictor
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.mission.missions import load_mission
 from rov_mav.model.thrusters import Allocator, thrusts_to_pwms
 from rov_mav.model.vehicle import load_vehicle

@@ -1,5 +1,6 @@
 """The long fuzz run of the built-in vehicle: `rov-mav sim-bridge` with four fuzzed links (two UDP, two TCP) and a
-checker's link, seeded traffic from `sim_bridge.fuzz` (well-formed messages of every ardupilotmega type with extreme
+checker's link, seeded traffic from `sim_bridge.transport.fuzz` (well-formed messages of every ardupilotmega type with
+extreme
 field values from random systems, and broken or random bytes), then the checks of tests/fuzz_helpers.py: the
 vehicle still answers, its state and parameters are sane, its message intervals are within ArduPilot's limits, and
 it handled every message without an exception.

@@ -1,7 +1,8 @@
 """Measure: a mission flown by `rov-mav run` against the built-in vehicle over a degraded link, and by a starved runner.
 
 For every loss (default 0/10/20/30 %, each way) x delay (default 0/50/100 ms of vehicle time, each way) x prediction
-(`--predict on` and `off`, side by side in the same row) it starts `rov-mav run` (--metrics) and, once the runner is up and calling, `rov-mav sim-bridge` with --link-faults on the runner's link and a
+(`--predict on` and `off`, side by side in the same row) it starts `rov-mav run` (--metrics) and, once the runner is up
+and calling, `rov-mav sim-bridge` with --link-faults on the runner's link and a
 second, clean link for a checker (so the vehicle does not drift in the mission's disturbance while the runner
 starts); after the run the checker reads the vehicle's end state (armed?, SERVO_OUTPUT_RAW, SERVO1..8_FUNCTION).
 Prints a markdown table: completed, exit status, RMS position error, control rate, watchdog episodes, loss measured by

@@ -1,4 +1,5 @@
-"""The picture of the default Rerun layout (README, docs/get-started.md): the square simulated, shown in a headless viewer, captured.
+"""The picture of the default Rerun layout (README, docs/get-started.md): the square simulated, shown in a headless
+viewer, captured.
 
 Needs a Vulkan driver (a GPU, or Debian's mesa-vulkan-drivers for software rendering). Run:
     .venv/bin/python tools/rerun_screenshot.py [--time 140] [--out docs/rerun_layout.png]

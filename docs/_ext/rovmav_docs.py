@@ -5,7 +5,8 @@ Directives (usable from MyST as ```{model-fields} ...```):
 - `model-fields MODULE:CLASS`: a table of a pydantic file schema's keys (type and constraints, default or
   "required", the comment the source gives the field), then one table per nested schema it uses.
 - `exit-statuses`: `rov-mav run`'s exit statuses, their numbers read from the constants the runner returns.
-- `runlog-columns`: ticks.csv's columns, from `rov_mav.flight.runlog.COLUMNS`; a column this file does not describe
+- `runlog-columns`: ticks.csv's columns, from `rov_mav.flight.record.runlog.COLUMNS`; a column this file does not
+  describe
   fails the build (a new column needs a line here).
 - `fault-grammar vehicle|link`: the keys of `--vehicle-faults` / `--link-faults` from their parsers' modules.
 """
@@ -199,9 +200,9 @@ class ModelFields(Directive):
 
 class ExitStatuses(Directive):
     def run(self):
-        from rov_mav.flight.run_options import HANDED_OVER
-        from rov_mav.flight.thruster_watch import EXIT_THRUSTER
-        from rov_mav.flight.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT
+        from rov_mav.flight.run.run_options import HANDED_OVER
+        from rov_mav.flight.run.thruster_watch import EXIT_THRUSTER
+        from rov_mav.flight.session.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT
         rows = [
             ["0", "the mission completed and every step of the safe stop was confirmed"],
             ["1", "aborted or refused (the reason is printed), or a step of the safe stop the vehicle never "
@@ -249,7 +250,7 @@ _COLUMN_TEXT = [   # (pattern, meaning): every column of runlog.COLUMNS must mat
 
 class RunlogColumns(Directive):
     def run(self):
-        from rov_mav.flight import runlog
+        from rov_mav.flight.record import runlog
         rows, groups = [], {}
         for column in runlog.COLUMNS:
             meaning = next((text for pattern, text in _COLUMN_TEXT if re.fullmatch(pattern, column)), None)
@@ -280,7 +281,7 @@ class FaultGrammar(Directive):
                 raise self.error(f"vehicle fault keys without a line in the module docstring: {sorted(missing)}")
             table = _table(["item", "what fails"], [[f"`{a}`", b] for a, b in rows], [3, 6])
         else:
-            module = importlib.import_module("sim_bridge.faults")
+            module = importlib.import_module("sim_bridge.transport.faults")
             rows = [[f"`{k}`", "probability, 0 to 1 or a percentage"] for k in module.PROBABILITIES]
             rows += [[f"`{k}`", "a time with its unit (ms or s)"] for k in module.DURATIONS]
             rows += [["`cut`", "LENGTH@START: nothing sent in between arrives"],
@@ -298,7 +299,8 @@ class FaultGrammar(Directive):
 # -- module docstrings ----------------------------------------------------------------------------------------------
 
 class ModuleDocstrings(Directive):
-    """Each module of a package with its docstring as written (the emulated ArduSub cites ArduPilot's source there)."""
+    """Each module of a package and its rooms with its docstring as written (the emulated ArduSub cites ArduPilot's
+    source there)."""
 
     required_arguments = 1
 
@@ -306,12 +308,13 @@ class ModuleDocstrings(Directive):
         import pkgutil
         package = importlib.import_module(self.arguments[0])
         out = []
-        for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
-            module = importlib.import_module(f"{package.__name__}.{info.name}")
+        found = pkgutil.walk_packages(package.__path__, prefix=f"{package.__name__}.")
+        for info in sorted((i for i in found if not i.ispkg), key=lambda i: i.name):
+            module = importlib.import_module(info.name)
             doc = inspect.cleandoc(module.__doc__ or "")
             if not doc:
                 continue
-            title = f"{package.__name__}/{info.name}.py"
+            title = info.name.replace(".", "/") + ".py"
             section = nodes.section(ids=[nodes.make_id(title)], names=[nodes.fully_normalize_name(title)])
             section += nodes.title(text=title)
             section += nodes.literal_block(doc, doc, classes=["rovmav-docstring"])

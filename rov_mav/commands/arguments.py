@@ -18,7 +18,7 @@ from pathlib import Path
 
 from rov_mav import shipped
 from rov_mav.config import ConfigError
-from sim_bridge.link import LinkError, parse_endpoint
+from sim_bridge.transport.link import TransportError, parse_endpoint
 
 MAVLINK_KINDS = ("udp", "udpin", "udpout", "udpbcast", "tcp", "tcpin")   # pymavlink's network connections
 MAX_SPEEDUP = 1000.0       # beyond it a 400 Hz step would get 2.5 us of wall time: the vehicle could only slip
@@ -110,13 +110,13 @@ vehicle_file = shipped_file("vehicle")
 # -- connection strings -------------------------------------------------------------------------------------------
 
 def endpoint(kinds: tuple[str, ...]) -> Callable[[str], str]:
-    """An argparse type: KIND:HOST:PORT with KIND one of `kinds` (see `sim_bridge.link.parse_endpoint`)."""
+    """An argparse type: KIND:HOST:PORT with KIND one of `kinds` (see `sim_bridge.transport.link.parse_endpoint`)."""
     def parse(text: str) -> str:
         if not text.strip():
             raise argparse.ArgumentTypeError("empty connection string")
         try:
             parse_endpoint(text, kinds)
-        except LinkError as exc:
+        except TransportError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
         return text
     return parse
@@ -156,7 +156,7 @@ def cluster_address(text: str) -> str:
     if text.startswith("tcp://"):
         try:
             parse_endpoint("tcp:" + text.removeprefix("tcp://"), ("tcp",))
-        except LinkError:
+        except TransportError:
             raise argparse.ArgumentTypeError(f"{text}: expected tcp://HOST:PORT, PORT from 1 to 65535") from None
         return text
     raise argparse.ArgumentTypeError(f"{text}: neither local:N nor tcp://HOST:PORT")

@@ -80,10 +80,11 @@ _NAVIGATION_ERRORS: dict[tuple, object] = {}
 
 def navigation_errors(navigation, seed: int, reference, dt: float):
     """The offline loops' `NavigationErrors`: the built-in vehicle's estimate along the mission
-    (`sim_bridge.estimate_errors`) as a run's law meets it (`flight.law_view`), computed once per (navigation, seed,
+    (`sim_bridge.navigation.estimate_errors`) as a run's law meets it (`flight.state.estimate_shaping`), computed once
+    per (navigation, seed,
     reference, dt) in this process (a bench flies each held-out run with every controller)."""
-    from rov_mav.flight.law_view import as_the_run_sees
-    from sim_bridge.estimate_errors import estimate_errors
+    from rov_mav.flight.state.estimate_shaping import as_the_run_sees
+    from sim_bridge.navigation.estimate_errors import estimate_errors
 
     key = (navigation, seed, reference.shape, hash(reference.tobytes()), dt)
     if key not in _NAVIGATION_ERRORS:

@@ -87,8 +87,8 @@ def load_dataflash_run(path: str, mission, start: float | None, prior):
     is the motors' outputs (`dive_runs.motor_outputs`) at the middle of its interval, its thrust's sign the PWM's
     times MOT_k_DIRECTION, the state's age 0. ConfigError (one line) when the log cannot give one."""
     from rov_mav.config import ConfigError
-    from rov_mav.offline import dive_runs
-    from rov_mav.offline.identification import Run
+    from rov_mav.offline.identify import dive_runs
+    from rov_mav.offline.identify.identification import Run
     from rov_mav.review.analysis import vehicle_time
     from rov_mav.review.dive_review import read_dive
     from rov_mav.review.reference import mission_start
@@ -150,8 +150,8 @@ def _same_frame(path: str, dive, prior) -> None:
 def load_run(directory: str):
     """A run's log folder as an identification `Run`: ConfigError (one line) if it is not the log of a flight."""
     from rov_mav.config import ConfigError
-    from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS
-    from rov_mav.offline.identification import Run
+    from rov_mav.flight.record.runlog import BODY, DOF, PWMS, REFERENCE, THRUSTS
+    from rov_mav.offline.identify.identification import Run
     from rov_mav.review.logdir import TICKS, column_block, read_run_folder
 
     path = Path(directory)
@@ -203,8 +203,8 @@ def _report(result, logs: list[str], out: str | None, window: float) -> str:
 def _checked(runs, prior, net_buoyancy, window, dofs):
     """The held-back check (`prediction_check`): a fit on the first two thirds of each run, its predictions on the
     last third beside the prior's; IdentificationError (one line) when the first part alone cannot be fitted."""
-    from rov_mav.offline.identification import MIN_DURATION, IdentificationError, identify
-    from rov_mav.offline.prediction_check import HELD_BACK, compare, split
+    from rov_mav.offline.identify.identification import MIN_DURATION, IdentificationError, identify
+    from rov_mav.offline.identify.prediction_check import HELD_BACK, compare, split
 
     parts = [split(run) for run in runs]
     try:
@@ -218,7 +218,7 @@ def _checked(runs, prior, net_buoyancy, window, dofs):
 
 def _refusal(result, comparisons) -> str | None:
     """Why the fitted vehicle must not be written, in one line, or None."""
-    from rov_mav.offline.prediction_check import DECIDING, impossible
+    from rov_mav.offline.identify.prediction_check import DECIDING, impossible
 
     if why := impossible(result.vehicle):
         return f"the fitted vehicle is impossible: {why}; nothing written"
@@ -240,7 +240,7 @@ def _check_lines(comparisons) -> list[str]:
 def _dofs(excitations) -> np.ndarray | None:
     """The DOFs to fit: all when any log is of a mission (None), else those some pilot's dive excited;
     IdentificationError (one line, each DOF's reason) when none was."""
-    from rov_mav.offline.identification import IdentificationError
+    from rov_mav.offline.identify.identification import IdentificationError
 
     if any(e is None for e in excitations):
         return None
@@ -283,7 +283,7 @@ def _load(args, prior):
 def main(args: argparse.Namespace) -> int:
     from rov_mav.config import ConfigError
     from rov_mav.model.vehicle import load_vehicle, save_vehicle
-    from rov_mav.offline.identification import WINDOW, IdentificationError, identify
+    from rov_mav.offline.identify.identification import WINDOW, IdentificationError, identify
 
     prior = load_vehicle(args.vehicle)
     window = args.window or WINDOW

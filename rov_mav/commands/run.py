@@ -254,12 +254,12 @@ def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=N
 
 
 def _start_vehicle(vehicle, target: str, speedup: float) -> None:
-    from rov_mav.flight.link import LinkError
-    from sim_bridge.link import LinkError as BridgeLinkError
+    from rov_mav.flight.session.link import LinkError
+    from sim_bridge.transport.link import TransportError
 
     try:
         vehicle.start()
-    except BridgeLinkError as exc:
+    except TransportError as exc:
         raise LinkError(f"the built-in vehicle could not start: {exc}") from None
     print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {vehicle.firmware}) on udp port "
           f"{target.rsplit(':', 1)[1]}, speedup {speedup:g}", flush=True)
@@ -284,7 +284,7 @@ def _limits(args: argparse.Namespace, mission, limits_type):
 
 def _from_vehicle(session, args: argparse.Namespace):
     """Connect and download the vehicle's mission (nothing on the vehicle changes)."""
-    from rov_mav.flight.vehicle_mission import vehicle_mission
+    from rov_mav.flight.session.vehicle_mission import vehicle_mission
 
     vehicle = session.connect(args.heartbeat_timeout)
     mission = vehicle_mission(session, plan_options(args))
@@ -297,14 +297,14 @@ def _from_vehicle(session, args: argparse.Namespace):
 def main(args: argparse.Namespace) -> int:
     # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
     from rov_mav.control.controller import Controller
-    from rov_mav.flight.actuation import Actuation
-    from rov_mav.flight.guided import KIND as GUIDED_KIND
-    from rov_mav.flight.guided import GuidedStream
-    from rov_mav.flight.link import LinkError, Session
-    from rov_mav.flight.runlog import RunLog
-    from rov_mav.flight.run_options import THRUSTERS, VEHICLE, Limits, RunOptions
-    from rov_mav.flight.runner import Runner, warm_up
-    from rov_mav.flight.status import StatusLine
+    from rov_mav.flight.thrusters.actuation import Actuation
+    from rov_mav.flight.run.guided import KIND as GUIDED_KIND
+    from rov_mav.flight.run.guided import GuidedStream
+    from rov_mav.flight.session.link import LinkError, Session
+    from rov_mav.flight.record.runlog import RunLog
+    from rov_mav.flight.run.run_options import THRUSTERS, VEHICLE, Limits, RunOptions
+    from rov_mav.flight.run.runner import Runner, warm_up
+    from rov_mav.flight.record.status import StatusLine
     from rov_mav.mission.metrics import run_metrics, truth_metrics
     from rov_mav.model.vehicle import load_flown_vehicle
 
@@ -337,7 +337,7 @@ def main(args: argparse.Namespace) -> int:
     if mission is not None:
         check_rerun_output(args, _default_recording(mission))
     if args.realtime:
-        from rov_mav.flight.realtime import ask_realtime
+        from rov_mav.flight.run.realtime import ask_realtime
         granted, line = ask_realtime()
         print(line, file=sys.stdout if granted else sys.stderr, flush=True)
     bridge, target, session = None, args.target, None

@@ -12,9 +12,9 @@ from rov_mav.model.environment import load_environment
 from rov_mav.model.navigation import PRESET_NAMES, Navigation, NavigationError, load_navigation
 from rov_mav.model.vehicle_faults import VehicleFaultError, VehicleFaults, load_vehicle_faults
 from sim_bridge.config import DEFAULT_ORIGIN, DEFAULT_OUT, DEFAULT_STEP, BridgeConfig
-from sim_bridge.faults import FaultError, FaultSpec, load_faults
-from sim_bridge.link import LinkError
-from sim_bridge.params import DEFAULT_FIRMWARE, FIRMWARES
+from sim_bridge.transport.faults import FaultError, FaultSpec, load_faults
+from sim_bridge.transport.link import TransportError
+from sim_bridge.autopilot.params import DEFAULT_FIRMWARE, FIRMWARES
 
 DESCRIPTION = """\
 A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a ground station (QGroundControl,
@@ -208,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         bridge.open()
-    except LinkError as exc:
+    except TransportError as exc:
         print(f"rov-mav sim-bridge: error: {exc}", file=sys.stderr)
         return 1
     faults = f", link faults {args.link_faults.describe()}" if args.link_faults is not None else ""

@@ -1,7 +1,8 @@
 """The report's law: model-based backstepping with a disturbance estimate (baseline, constant, fuzzy), compiled.
 
 Sources: the report's Eqs. 2.13-2.17 as corrected by ERRATA 2 (the law) and Eq. 2.22 as corrected by ERRATA 3
-(the adaptation; both in docs/errata.md); Eq. 2.29 and Appendix III (the fuzzy rates). `rov_mav.control.law` holds the readable matrix
+(the adaptation; both in docs/errata.md); Eq. 2.29 and Appendix III (the fuzzy rates). `rov_mav.control.law` holds the
+readable matrix
 form the tests hold this to. Parameter vector: [k1 (6) | k2 (6) | constant_gamma (6) | d_max (6)]; state: the
 estimate tau_hat (6).
 """

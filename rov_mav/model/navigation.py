@@ -2,7 +2,8 @@
 
 A `Navigation` names which horizontal source aids the autopilot's estimator (none, a DVL, an acoustic positioning
 system, both) and how each sensor errs. The built-in vehicle draws its sensors from the plant's true state with these
-figures and fuses them in its EKF stand-in (`sim_bridge.sensors`, `sim_bridge.estimator`); `ideal` keeps the old
+figures and fuses them in its EKF stand-in (`sim_bridge.navigation.sensors`, `sim_bridge.navigation.estimator`);
+`ideal` keeps the old
 behaviour (the plant's state plus the environment's noise, valid from boot).
 
 Default figures and where they come from (chosen where no source gives one, and said so):

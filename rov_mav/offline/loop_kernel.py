@@ -218,7 +218,7 @@ def simulate_batch(plant, env, ctrl, params, kind, table, table_scale, ref, dt, 
     params (B, P): each run's controller parameter vector for controller `kind` (`law_kernel.controller_step`,
     with the fuzzy rate table and its table_scale); ref (N+1, 18): reference at t_k = k dt; x0 (12,); seeds (B,) for
     sensor noise; nav_errors (E, M, 6): navigation errors (position, body velocity at each tick: the built-in
-    vehicle's estimate along the mission, `sim_bridge.estimate_errors`; M = 0 for none), run b's nav_errors[nav_index[
+    vehicle's estimate along the mission, `sim_bridge.navigation.estimate_errors`; M = 0 for none), run b's nav_errors[nav_index[
     b]]. The controller sees the measured state (true state plus the environment's sensor noise, drawn for
     each tick whose measurement telemetry delivers) as telemetry delivers it: sampled every E_SAMPLE_PERIOD s and E_SAMPLE_DELAY s late, held between samples (before
     the first sample arrives, the measurement at t = 0); period and delay 0 give every tick's measurement at once.

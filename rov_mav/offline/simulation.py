@@ -18,7 +18,7 @@ CONTROL_DT = 0.01     # s: the report's 100 Hz control rate
 SUBSTEPS = 1          # RK4 steps per control tick (see docs/explanation/model-and-law.md: one RK4 step of 10 ms is converged to < 1e-6 m)
 NO_NAVIGATION = np.zeros((1, 0, 6))   # simulate_batch's navigation errors when the state is measured without any
 # (navigation, seed, reference (N+1, 18), dt) -> (N+1, 6): a navigation's errors along a mission, position and body
-# velocity (`sim_bridge.estimate_errors`, given by the commands: the offline layer does not import the bridge)
+# velocity (`sim_bridge.navigation.estimate_errors`, given by the commands: the offline layer does not import the bridge)
 NavigationErrors = Callable[[Navigation, int, np.ndarray, float], np.ndarray]
 
 

@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from rov_mav.flight.actuation import PWM_TOLERANCE
-from rov_mav.flight.link import CHANNELS, mode_name
+from rov_mav.flight.thrusters.actuation import PWM_TOLERANCE
+from rov_mav.flight.session.link import CHANNELS, mode_name
 from rov_mav.model.frames import Frame, frame_of, frames_by_string
 from rov_mav.review.dive import Dive
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rov_mav.flight.link import mode_name
+from rov_mav.flight.session.link import mode_name
 from rov_mav.review.series import last_known
 
 STABILIZE, ALT_HOLD, AUTO, GUIDED, CIRCLE, POSHOLD, SURFTRAK = 0, 2, 3, 4, 7, 16, 21

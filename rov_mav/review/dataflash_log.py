@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.flight.link import CHANNELS, mavlink
+from rov_mav.flight.session.link import CHANNELS, mavlink
 from rov_mav.model.dynamics import euler_rate_matrix, rotation
 from rov_mav.review import controller_tracking, onboard
 from rov_mav.review.dataflash_records import Records, first_core, index_dataflash

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rov_mav.flight.history import History
-from rov_mav.flight.link import CHANNELS, MOTOR_TEST_PWM, NEUTRAL, mavlink
-from rov_mav.flight.truth import Truth
-from rov_mav.flight.vehicle_state import STATE_MESSAGES, StateDecoder
+from rov_mav.flight.record.history import History
+from rov_mav.flight.session.link import CHANNELS, MOTOR_TEST_PWM, NEUTRAL, mavlink
+from rov_mav.flight.session.truth import Truth
+from rov_mav.flight.state.vehicle_state import STATE_MESSAGES, StateDecoder
 from rov_mav.mission.mission_items import MissionItem
 from rov_mav.review import controller_tracking
 

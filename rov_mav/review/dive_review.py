@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from rov_mav.config import ConfigError
-from rov_mav.flight.link import CHANNELS, mavlink
-from rov_mav.flight.runlog import BODY, DOF, PWMS, REFERENCE, REPORTED, THRUSTS, TRUTH, per_dof, per_wrench
+from rov_mav.flight.session.link import CHANNELS, mavlink
+from rov_mav.flight.record.runlog import BODY, DOF, PWMS, REFERENCE, REPORTED, THRUSTS, TRUTH, per_dof, per_wrench
 from rov_mav.mission.metrics import loop_figures, pwm_activity, run_metrics, truth_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.offline.simulation import Trace

@@ -18,7 +18,7 @@ import numpy as np
 
 from rov_mav import config
 from rov_mav.config import ConfigError
-from rov_mav.flight.runlog import RUN_INFO
+from rov_mav.flight.record.runlog import RUN_INFO
 from rov_mav.review.tlog import regular_file
 
 TICKS, EVENTS, TLOG = "ticks.csv", "events.csv", "mavlink.tlog"
@@ -97,7 +97,7 @@ def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
 
 
 def column_block(ticks: dict[str, np.ndarray], names) -> np.ndarray:
-    """(N, len(names)) of ticks.csv's columns `names` (a group of `flight.runlog`'s), NaN for a column the log
+    """(N, len(names)) of ticks.csv's columns `names` (a group of `flight.record.runlog`'s), NaN for a column the log
     lacks."""
     n = ticks["t"].size
     return np.stack([ticks.get(name, np.full(n, np.nan)) for name in names], axis=1)

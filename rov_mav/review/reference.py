@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav.config import ConfigError
-from rov_mav.flight.runlog import parse_mission_start
+from rov_mav.flight.record.runlog import parse_mission_start
 from rov_mav.mission.mission_items import Planned, PlanOptions, build_mission
 from rov_mav.review.dive import Dive
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rov_mav.config import ConfigError
-from rov_mav.flight.link import mavutil
+from rov_mav.flight.session.link import mavutil
 
 STAMP = 8                 # bytes of timestamp before each packet
 TIME_JUMP = 60.0          # s: a record's wall time this far from both neighbours is a damaged timestamp

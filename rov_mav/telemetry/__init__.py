@@ -1,6 +1,11 @@
-"""Live and recorded telemetry in the Rerun viewer: entities (`entities`), default layout (`blueprint`), where it
-goes (`target`: parsing only), opening it (`recording`), the runner's non-blocking sink (`live`) and whole offline
-runs (`trace`).
+"""Live and recorded telemetry in the Rerun viewer.
+
+- blueprint: the default layout
+- entities: the entity tree, and the columnar logging of control ticks
+- live: the runner's non-blocking sink
+- recording: opening a recording and completing it
+- target: where telemetry goes (--rerun; parsing only, no Rerun import)
+- trace: a whole offline run logged in one go
 
 The names below load their module (and with it the Rerun SDK) on first use, so that a command that only parses
 `--rerun off` never imports Rerun."""

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import rerun as rr
 
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.model import dynamics
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.units import wrap_angle

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import rerun as rr
 
-from rov_mav.flight.tick import TickRecord
+from rov_mav.flight.record.tick import TickRecord
 from rov_mav.model.vehicle import Vehicle
 from rov_mav.telemetry.entities import TickColumns, log_static, send_events, send_ticks
 from rov_mav.telemetry.recording import FLUSH_TIMEOUT, finish

@@ -48,7 +48,8 @@ def parse_target(text: str) -> RerunTarget:
 
 
 def _check_url(url: str) -> None:
-    """ValueError unless `url` is a viewer URL with a host (and a valid port, if any): rerun+http(s)://HOST[:PORT]/..."""
+    """ValueError unless `url` is a viewer URL with a host (and a valid port, if any):
+    rerun+http(s)://HOST[:PORT]/..."""
     parts = urlsplit(url)
     try:
         parts.port

@@ -1,0 +1,9 @@
+"""The vehicle's navigation: its sensors, the estimator, the EKF's aiding and status, the sources' own messages.
+
+- aiding: the EKF's estimate and status under a lost position source (EKF_STATUS_REPORT, LOCAL_POSITION_NED)
+- avionics: what the autopilot's sensors read during one boot, under the vehicle's faults
+- estimate_errors: the navigation error along a path, for the offline loops
+- estimator: the Kalman filters standing in for EKF3
+- sensors: the sensors, drawn from the plant's true state
+- source_messages: what the navigation sources' BlueOS extensions put on the link
+"""
