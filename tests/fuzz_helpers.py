@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from run_helpers import CHECKER_SYSID, SPEEDUP
-from test_bridge_gcs import RETRY, WAIT, BridgeProcess, Gcs, free_port, mavutil
+from bridge_helpers import RETRY, WAIT, BridgeProcess, Gcs, free_port, mavutil
 
 from sim_bridge.autopilot.ardusub import MOTOR1, SUPPORTED_MODES
 from sim_bridge.transport.fuzz import SIGNATURE_LEN, SIGNED, STX_V1, STX_V2, Traffic

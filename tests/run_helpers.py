@@ -9,7 +9,7 @@ import threading
 import time
 from pathlib import Path
 
-from test_bridge_gcs import ROV_MAV, WAIT, BridgeProcess, Gcs, free_port  # noqa: F401 -- re-exported
+from bridge_helpers import ROV_MAV, WAIT, BridgeProcess, Gcs, free_port  # noqa: F401 -- re-exported
 
 RUN_WAIT = 180.0        # wall s for a whole run (the square at --speedup 5 takes ~20 s)
 CHECKER_SYSID = 200

@@ -20,8 +20,8 @@ from pymavlink import mavutil  # noqa: E402
 from run_helpers import ROV_MAV, SPEEDUP, RunnerProcess, short_mission  # noqa: E402
 from sitl_helpers import Sitl  # noqa: E402
 from telemetry_helpers import read_column, temporal_entities  # noqa: E402
-from test_bridge_clients import MAVPROXY, Console  # noqa: E402
-from test_bridge_gcs import BridgeProcess  # noqa: E402
+from bridge_helpers import MAVPROXY, Console  # noqa: E402
+from bridge_helpers import BridgeProcess  # noqa: E402
 
 from rov_mav.flight.record.runlog import DOF, REPORTED, parse_mission_start  # noqa: E402
 from rov_mav.mission import metrics as tracking  # noqa: E402

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from cli_helpers import assert_one_line, files_under, rov_mav
 from conftest import MISSIONS
 
 from rov_mav import cli
@@ -127,27 +128,6 @@ def workdir(tmp_path, monkeypatch):
     (tmp_path / "inputs").mkdir()
     monkeypatch.chdir(work)
     return work
-
-
-def files_under(folder: Path) -> set[Path]:
-    return set(folder.rglob("*"))
-
-
-def rov_mav(argv: list[str], capsys) -> tuple[int, str]:
-    """(exit status, stderr) of `rov-mav ARGV` in-process: argparse's refusals raise SystemExit like the script."""
-    try:
-        status = cli.main(argv)
-    except SystemExit as exc:
-        status = exc.code
-    return status, capsys.readouterr().err
-
-
-def assert_one_line(err: str, *fragments: str) -> None:
-    """Exactly one line on stderr, holding every fragment, and no trace of a traceback or an internal error."""
-    assert err.endswith("\n") and err.count("\n") == 1, err
-    for fragment in fragments:
-        assert fragment in err, err
-    assert "Traceback" not in err and "internal error" not in err, err
 
 
 @pytest.mark.parametrize("kind", list(BAD_FILES))

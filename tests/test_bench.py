@@ -11,8 +11,8 @@ import pyarrow as pa
 import pytest
 from conftest import MISSIONS
 from rerun.chunk import RrdReader
-from test_bad_input import assert_one_line, files_under, rov_mav
-from test_bridge_gcs import ROV_MAV
+from cli_helpers import assert_one_line, files_under, rov_mav
+from bridge_helpers import ROV_MAV
 
 from rov_mav import cli
 from rov_mav.flight.state.prediction import StatePredictor

@@ -7,7 +7,7 @@ param2 = 2989 arms without them, but not past 4.7's throttle-centred check."""
 from __future__ import annotations
 
 import pytest
-from test_bridge_gcs import BridgeThread, Gcs, mavutil
+from bridge_helpers import BridgeThread, Gcs, mavutil
 
 from rov_mav.model.vehicle_faults import parse_vehicle_faults
 

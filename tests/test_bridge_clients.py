@@ -11,62 +11,9 @@ import time
 from pathlib import Path
 
 import pytest
-from test_bridge_gcs import WAIT, BridgeProcess
+from bridge_helpers import MAVPROXY, WAIT, BridgeProcess, Console
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
-
-MAVPROXY = str(Path(sys.executable).with_name("mavproxy.py"))
-
-
-class Console:
-    """A console program with its stdin piped and its output in a file we poll."""
-
-    def __init__(self, args: list[str], log: Path, cwd: Path):
-        self.log = log
-        with open(log, "w") as out:
-            self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
-                                         cwd=cwd, text=True)
-        self.seen = 0
-
-    def expect(self, text: str, timeout: float = WAIT) -> None:
-        """Wait for `text` in the output after what earlier expectations matched."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            output = self.log.read_text()
-            at = output.find(text, self.seen)
-            if at >= 0:
-                self.seen = at + len(text)
-                return
-            assert self.proc.poll() is None, f"exited early:\n{output}"
-            time.sleep(0.1)
-        raise AssertionError(f"no {text!r} within {timeout} s in:\n{self.log.read_text()}")
-
-    def poll(self, line: str, text: str, timeout: float = WAIT) -> None:
-        """Send `line` every second until `text` appears."""
-        deadline = time.monotonic() + timeout
-        while True:
-            self.send(line)
-            try:
-                return self.expect(text, 1.0)
-            except AssertionError:
-                if time.monotonic() > deadline:
-                    raise
-
-    def send(self, line: str) -> None:
-        self.proc.stdin.write(line + "\n")
-        self.proc.stdin.flush()
-
-    def close(self, command: str) -> None:
-        """Ask the program to quit with `command`, kill it if it has not within a few seconds."""
-        if self.proc.poll() is None:
-            try:
-                self.send(command)
-                self.proc.stdin.close()
-                self.proc.wait(5)
-            except (OSError, subprocess.TimeoutExpired):
-                self.proc.kill()
-                self.proc.wait()
-
 
 def test_mavproxy_sees_ardusub_changes_mode_arms_and_sets_a_parameter(tmp_path):
     # real time: MAVProxy sends its GCS heartbeat at 1 Hz of wall time

@@ -8,8 +8,8 @@ from __future__ import annotations
 import time
 
 import pytest
-from test_bridge_gcs import BridgeThread, Gcs, mavutil
-from test_bridge_protocol import SPEEDUP, use_passthrough, wait_servo
+from bridge_helpers import BridgeThread, Gcs, mavutil
+from bridge_helpers import SPEEDUP, use_passthrough, wait_servo
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

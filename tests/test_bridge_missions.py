@@ -12,7 +12,7 @@ os.environ["MAVLINK20"] = "1"
 import pytest  # noqa: E402
 from pymavlink import mavutil  # noqa: E402
 from sitl_helpers import Sitl  # noqa: E402
-from test_bridge_gcs import WAIT, BridgeThread  # noqa: E402
+from bridge_helpers import WAIT, BridgeThread  # noqa: E402
 
 mav = mavutil.mavlink
 # (command, frame, param1-4, lat, lon, alt) as a ground station uploads them; item 0 is home's slot.

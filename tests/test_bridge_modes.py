@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from test_bridge_gcs import BridgeThread, Gcs, mavutil
+from bridge_helpers import BridgeThread, Gcs, mavutil
 
 from rov_mav.model.environment import Environment
 from rov_mav.model.plant import Plant

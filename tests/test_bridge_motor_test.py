@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-from test_bridge_gcs import BridgeThread, Gcs, mavutil
+from bridge_helpers import BridgeThread, Gcs, mavutil
 
 from sim_bridge.autopilot.ardusub import MAV_RESULT_ACCEPTED, MAV_RESULT_FAILED, MODES, ArduSub
 from sim_bridge.gcs.missions import MissionProtocol

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_bridge_gcs import ROV_MAV, BridgeThread, Gcs
+from bridge_helpers import ROV_MAV, BridgeThread, Gcs
 
 from rov_mav.config import ConfigError
 from rov_mav.model.environment import load_environment

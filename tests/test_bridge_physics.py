@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from test_bridge_gcs import BridgeThread, Gcs, mavutil
+from bridge_helpers import BridgeThread, Gcs, mavutil
 
 from rov_mav.model.thrusters import Allocator, allocation_matrix, load_t200
 

@@ -12,17 +12,9 @@ import subprocess
 import time
 
 import pytest
-from test_bridge_gcs import (
-    ROV_MAV,
-    WAIT,
-    BridgeProcess,
-    BridgeThread,
-    Gcs,
-    free_port,
-    mavutil,
-)
+from bridge_helpers import (ROV_MAV, SPEEDUP, WAIT, BridgeProcess, BridgeThread, Gcs, free_port, mavutil, servo,
+                            use_passthrough, wait_servo)
 
-SPEEDUP = 10.0
 mav = mavutil.mavlink
 
 
@@ -38,19 +30,6 @@ def gcs(bridge):
     g.connect()
     yield g
     g.close()
-
-
-def servo(m) -> list[int]:
-    return [getattr(m, f"servo{i}_raw") for i in range(1, 9)]
-
-
-def wait_servo(gcs: Gcs, cond, timeout: float = WAIT):
-    return gcs.recv("SERVO_OUTPUT_RAW", timeout, lambda m: cond(servo(m)))
-
-
-def use_passthrough(gcs: Gcs) -> None:
-    for n in range(1, 9):
-        assert gcs.set_param(f"SERVO{n}_FUNCTION", 50 + n, mav.MAV_PARAM_TYPE_INT16).param_value == 50 + n
 
 
 @pytest.mark.process

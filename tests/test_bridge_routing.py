@@ -9,8 +9,8 @@ from __future__ import annotations
 import time
 
 import pytest
-from test_bridge_gcs import BridgeThread, Gcs
-from test_bridge_protocol import SPEEDUP
+from bridge_helpers import BridgeThread, Gcs
+from bridge_helpers import SPEEDUP
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

@@ -8,7 +8,7 @@ import re
 import time
 
 import pytest
-from test_bridge_gcs import BridgeProcess, BridgeThread, Gcs, mavutil
+from bridge_helpers import BridgeProcess, BridgeThread, Gcs, mavutil
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

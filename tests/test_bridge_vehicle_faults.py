@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-from test_bridge_gcs import ROV_MAV, WAIT, BridgeProcess, BridgeThread, Gcs, free_port, mavutil
+from bridge_helpers import ROV_MAV, WAIT, BridgeProcess, BridgeThread, Gcs, free_port, mavutil
 
 from rov_mav.model.dynamics import rotation
 from rov_mav.model.navigation import PRESETS as NAVIGATION_PRESETS

@@ -9,8 +9,8 @@ import time
 import numpy as np
 import pytest
 from pymavlink import DFReader
-from test_bridge_gcs import BridgeThread, Gcs
-from test_bridge_protocol import SPEEDUP
+from bridge_helpers import BridgeThread, Gcs
+from bridge_helpers import SPEEDUP
 
 from rov_mav.review.dataflash_records import read_records
 from rov_mav.review.dive_review import review_dive

@@ -1,6 +1,7 @@
 """The code's map held to the tree: every package's docstring indexes its modules and sub-packages, a line each
 ("- name: ..." or "- name/: ..."), and docs/development/layout.md names every module by its path; a module added
-without its line, or a line naming a module that is gone, fails here. No package holds more than MAX_MODULES."""
+without its line, or a line naming a module that is gone, fails here. No package holds more than MAX_MODULES. The
+tests' own helpers live in helper modules or conftest.py, never in a test file another test imports."""
 
 from __future__ import annotations
 
@@ -46,3 +47,14 @@ def test_the_layout_page_names_every_module_and_none_that_is_gone():
             if p.name != "__init__.py"}
     assert not named - tree, f"{LAYOUT.name} names modules that are not in the tree: {sorted(named - tree)}"
     assert not tree - named, f"{LAYOUT.name} leaves out: {sorted(tree - named)}"
+
+
+def test_no_test_file_imports_another():
+    importing = {}
+    for path in sorted((ROOT / "tests").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            if any(name.split(".")[0].startswith("test_") for name in names):
+                importing[path.name] = names
+    assert not importing, f"test files importing a test file (move the helpers to a *_helpers module): {importing}"

@@ -138,7 +138,7 @@ def test_realtime_refused_is_one_line_naming_what_was_refused():
     where = Path(tempfile.mkdtemp(prefix="rov-mav-realtime-", dir="/tmp"))
     try:
         where.chmod(0o755)
-        shutil.copy(ROOT / "rov_mav" / "flight" / "realtime.py", where / "realtime.py")
+        shutil.copy(ROOT / "rov_mav" / "flight" / "run" / "realtime.py", where / "realtime.py")
         (where / "realtime.py").chmod(0o644)
         code = (f"import sys; sys.path.insert(0, {str(where)!r}); from realtime import ask_realtime; "
                 "granted, line = ask_realtime(); print(granted); print(line)")

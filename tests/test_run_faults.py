@@ -24,7 +24,7 @@ from run_helpers import (
     servo_outputs,
     short_mission,
 )
-from test_bridge_gcs import Gcs, mavutil
+from bridge_helpers import Gcs, mavutil
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

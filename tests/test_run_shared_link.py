@@ -23,7 +23,7 @@ from run_helpers import (
     servo_outputs,
     short_mission,
 )
-from test_bridge_gcs import Gcs
+from bridge_helpers import Gcs
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 

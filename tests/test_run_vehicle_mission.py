@@ -18,7 +18,7 @@ from run_helpers import (
     free_port,
     servo_functions,
 )
-from test_bridge_clients import MAVPROXY, Console
+from bridge_helpers import MAVPROXY, Console
 
 from rov_mav.mission.loader import load
 

@@ -17,8 +17,8 @@ from run_helpers import (
     servo_functions,
     short_mission,
 )
-from test_bridge_clients import MAVPROXY, Console
-from test_bridge_gcs import BridgeProcess, Gcs
+from bridge_helpers import MAVPROXY, Console
+from bridge_helpers import BridgeProcess, Gcs
 
 from rov_mav.cli import main as rov_mav
 from rov_mav.signing import (

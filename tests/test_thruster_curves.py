@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from test_thrusters import ARDUSUB_FACTORS, FORWARD, LATERAL, PITCH, ROLL, THROTTLE, YAW
+from mixer_oracle import ARDUSUB_FACTORS, FORWARD, LATERAL, PITCH, ROLL, THROTTLE, YAW
 
 from rov_mav.config import ConfigError
 from rov_mav.flight.thrusters.actuation import Actuation

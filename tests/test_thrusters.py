@@ -7,6 +7,7 @@ from importlib import resources
 
 import numpy as np
 import pytest
+from mixer_oracle import ARDUSUB_FACTORS, FORWARD, LATERAL, PITCH, ROLL, THROTTLE, YAW
 
 from rov_mav.model.thrusters import (
     Allocator,
@@ -23,18 +24,6 @@ PACKAGE_CSV = resources.files("rov_mav") / "data" / "t200_performance.csv"
 SHEET_VOLTAGES = [10.0, 12.0, 14.0, 16.0, 18.0, 20.0]
 VOLTAGES = SHEET_VOLTAGES + [11.1, 14.8, 15.6, 16.8, 19.3]
 
-# ArduSub AP_Motors6DOF, SUB_FRAME_VECTORED_6DOF: (roll, pitch, yaw, throttle, forward, lateral) per motor.
-ARDUSUB_FACTORS = np.array([
-    [0, 0, +1, 0, -1, +1],
-    [0, 0, -1, 0, -1, -1],
-    [0, 0, -1, 0, +1, +1],
-    [0, 0, +1, 0, +1, -1],
-    [+1, -1, 0, -1, 0, 0],
-    [-1, -1, 0, -1, 0, 0],
-    [+1, +1, 0, -1, 0, 0],
-    [-1, +1, 0, -1, 0, 0],
-], dtype=float)
-ROLL, PITCH, YAW, THROTTLE, FORWARD, LATERAL = range(6)
 X, Y, Z, K, M, N = range(6)
 
 # Flat runs the monotone correction creates on the sheets: (voltage, PWM nearest 1500, PWM farthest). pwm(thrust(p))

@@ -111,8 +111,14 @@ def main(args: argparse.Namespace) -> int:
 
 
 def summary(label: str, m: dict) -> list[str]:
-    """The one-screen summary of a review's metrics."""
-    lines = [f"{label}: {_what(m)}"]
+    """The one-screen summary of a review's metrics: what was flown and how well, the loop and the link, the
+    vehicle's side."""
+    return [f"{label}: {_what(m)}", *_tracking_lines(m), *_loop_lines(m), *_vehicle_lines(m)]
+
+
+def _tracking_lines(m: dict) -> list[str]:
+    """The mission and the tracking (or the path flown, or no reference)."""
+    lines = []
     ref = m.get("reference", {})
     if "rms_position_error_m" in m:
         status = "completed" if m["completed"] else "NOT completed"
@@ -133,6 +139,12 @@ def summary(label: str, m: dict) -> list[str]:
                      f"{_cm(p['max_cross_track_m'])} ({p['samples_from']}); closest approach per waypoint {closest}")
     else:
         lines.append(f"  tracking: no reference ({ref.get('note', 'no mission')}; --mission FILE to measure one)")
+    return lines
+
+
+def _loop_lines(m: dict) -> list[str]:
+    """The loop, the thrusters' activity, the telemetry, the watchdog, who commanded, the outputs' limits."""
+    lines = []
     loop = m.get("loop", {})
     if loop.get("ticks"):
         latency = f"; telemetry-in to command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 " \
@@ -159,7 +171,12 @@ def summary(label: str, m: dict) -> list[str]:
             f"T{1 + max(range(8), key=lambda i: s['fraction_at_limit'][i])} "
             f"{_percent(max(s['fraction_at_limit']))})"
             for name, s in m["saturation"].items() if isinstance(s, dict) and s.get("samples")) or "  no outputs")
-    lines += _sensor_lines(m.get("sensors", {}))
+    return lines
+
+
+def _vehicle_lines(m: dict) -> list[str]:
+    """What the vehicle's sensors, battery, firmware and modes said, both controllers' tracking, its own log."""
+    lines = _sensor_lines(m.get("sensors", {}))
     if m.get("battery"):
         b = m["battery"]
         used = f", {b['consumed_mah']:.0f} mAh used ({b['consumed_from']})" if _finite(b.get("consumed_mah")) else ""

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
-import math
 import socket
 import sys
 from pathlib import Path
@@ -37,13 +35,13 @@ from rov_mav.commands.common import (
     signing_key,
 )
 from rov_mav.config import ConfigError
+from rov_mav.flight.run.run_options import DEFAULT_MAX_TILT_DEG
 from rov_mav.mission.missions import MAX_SPEED
 
 MAX_RATE = 400.0              # Hz: ArduSub's main loop; no telemetry comes faster
 MAX_LINK_TIMEOUT = 60.0       # vehicle s: flying blind longer than this is not a setting
 MAX_BAUD = 10_000_000
 MAX_VELOCITY_BLEND = 50.0     # rad/s: the filter is stepped at the control rate; beyond this it is no filter
-DEFAULT_MAX_TILT_DEG = 15.0   # deg of roll or pitch: a BlueROV2 flies level; beyond this the law has lost it
 
 DESCRIPTION = """\
 Fly MISSION with the backstepping law and its disturbance adaptation, over MAVLink, on a BlueROV2 Heavy running
@@ -135,10 +133,23 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "override; limit crossings are reported, not acted on")
     p.add_argument("--force", action="store_true",
                    help="take over a vehicle that is already armed or that another station is driving")
-    p.add_argument("--metrics", type=output_file, metavar="FILE", help="write the tracking metrics JSON (as `simulate` does) here")
+    p.add_argument("--metrics", type=output_file, metavar="FILE",
+                   help="write the tracking metrics JSON (as `simulate` does) here")
     p.add_argument("--log", type=output_folder, metavar="DIR",
                    help="write ticks.csv (state, reference, commands, controller internals), events.csv, the "
                         "raw MAVLink traffic (mavlink.tlog) and run.json to DIR (review it with `rov-mav analyze DIR`)")
+    _add_limit_options(p)
+    _add_link_options(p)
+    _add_loop_options(p)
+    _add_builtin_options(p)
+    add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
+                           "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
+                           "the key is refused. The built-in vehicle gets the same key.")
+    add_rerun_option(p)
+    p.set_defaults(func=main)
+
+
+def _add_limit_options(p: argparse.ArgumentParser) -> None:
     limits = p.add_argument_group("limits (default: the mission's `limits:` block)")
     limits.add_argument("--max-depth", type=positive_float, metavar="M", help="abort below this depth")
     limits.add_argument("--max-tracking-error", type=positive_float, metavar="M",
@@ -148,11 +159,14 @@ def configure(p: argparse.ArgumentParser) -> None:
     limits.add_argument("--max-tilt", type=number(0.0, 89.0, low_open=True), metavar="DEG",
                         help=f"abort when the roll or pitch exceeds this many degrees (default: the mission's "
                              f"max_tilt, else {DEFAULT_MAX_TILT_DEG:g})")
+
+
+def _add_link_options(p: argparse.ArgumentParser) -> None:
     link = p.add_argument_group("link")
     link.add_argument("--sysid", type=sysid, metavar="ID",
                       help="our MAVLink system id, 1 to 255 (default: the vehicle's MAV_GCS_SYSID / SYSID_MYGCS, "
-                           "usually 255; another one, or a pilot's joystick on that sysid, makes the run take the GCS role with "
-                           "its own sysid for the run)")
+                           "usually 255; another one, or a pilot's joystick on that sysid, makes the run take the GCS "
+                           "role with its own sysid for the run)")
     link.add_argument("--baud", type=count(MAX_BAUD), default=115200, help="serial baud rate (default 115200)")
     link.add_argument("--heartbeat-timeout", type=seconds, default=15.0, metavar="S",
                       help="wall seconds to wait for the vehicle's heartbeat (default 15)")
@@ -161,6 +175,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     link.add_argument("--link-timeout", type=number(0.0, MAX_LINK_TIMEOUT, low_open=True), default=2.0,
                       metavar="S",
                       help="vehicle seconds without telemetry before the run aborts as a lost link (default 2)")
+
+
+def _add_loop_options(p: argparse.ArgumentParser) -> None:
+    """How the loop flies: the lead-in, the estimate's blend, PWM rounding, prediction, pretension, the thruster
+    check, the estimator, real-time scheduling."""
     p.add_argument("--approach-speed", type=number(0.0, MAX_SPEED, low_open=True), default=0.2, metavar="M/S",
                    help="speed of the lead-in from where the vehicle is to the mission's start (default 0.2)")
     p.add_argument("--velocity-blend", type=number(0.0, MAX_VELOCITY_BLEND), default=0.2, metavar="RAD_S",
@@ -193,6 +212,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="ask the operating system for real-time scheduling (SCHED_FIFO) and locked memory, so that a "
                         "busy computer does not stall the loop; says in one line what was refused (it needs root or "
                         "CAP_SYS_NICE and CAP_IPC_LOCK) and flies on at normal priority")
+
+
+def _add_builtin_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="built-in vehicle only: run it N times faster than real time (default 1)")
     p.add_argument("--navigation", type=_navigation, metavar="NAME|FILE",
@@ -205,11 +227,6 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "thruster=N:dead|stuck=PWM|weak=K|reversed@T, reboot@T, leak@T, battery=RATE[@T] (V/s), "
                         "navigation-lost@T[+D], navigation-reset=N/E@T (m), depth-sensor@T, comma-separated, e.g. "
                         "thruster=3:dead@60s")
-    add_signing_options(p, "with a key, the run signs everything it sends and ignores (counts, and reports once) "
-                           "whatever arrives unsigned or signed with another key; a vehicle that does not sign with "
-                           "the key is refused. The built-in vehicle gets the same key.")
-    add_rerun_option(p)
-    p.set_defaults(func=main)
 
 
 def _free_udp_port() -> int:
@@ -236,33 +253,40 @@ def _navigation(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _launch_vehicle(mission, speedup: float, key: bytes | None, vehicle_faults=None, navigation=None):
-    """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with
-    the loop), its home at the mission's origin when it has one, loading while this process gets ready; returns
-    (vehicle, connection string for it). Its clock starts with `_start_vehicle`."""
-    from sim_bridge.config import DEFAULT_ORIGIN, BridgeConfig
-    from sim_bridge.process import VehicleProcess
+class _BuiltIn:
+    """The built-in vehicle in a child process (`sim_bridge.process`: never sharing this interpreter's lock with the
+    loop), its home at the mission's origin when it has one, loading while this process gets ready."""
 
-    port = _free_udp_port()
-    origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
-    vehicle = VehicleProcess(BridgeConfig(endpoints=(f"udpin:127.0.0.1:{port}",), speedup=speedup,
-                                          environment=mission.environment, start_depth=float(mission.start_pose[2]),
-                                          origin=origin, signing_key=key, vehicle_faults=vehicle_faults,
-                                          navigation=navigation))
-    vehicle.launch()
-    return vehicle, f"udpout:127.0.0.1:{port}"
+    def __init__(self, mission, speedup: float, key: bytes | None, vehicle_faults=None, navigation=None):
+        from sim_bridge.config import DEFAULT_ORIGIN, BridgeConfig
+        from sim_bridge.process import VehicleProcess
 
+        self.port, self.speedup = _free_udp_port(), speedup
+        origin = (*mission.origin, 0.0) if mission.origin else DEFAULT_ORIGIN
+        self.process = VehicleProcess(BridgeConfig(
+            endpoints=(f"udpin:127.0.0.1:{self.port}",), speedup=speedup, environment=mission.environment,
+            start_depth=float(mission.start_pose[2]), origin=origin, signing_key=key, vehicle_faults=vehicle_faults,
+            navigation=navigation))
+        self.process.launch()
 
-def _start_vehicle(vehicle, target: str, speedup: float) -> None:
-    from rov_mav.flight.session.link import LinkError
-    from sim_bridge.transport.link import TransportError
+    @property
+    def target(self) -> str:
+        return f"udpout:127.0.0.1:{self.port}"
 
-    try:
-        vehicle.start()
-    except TransportError as exc:
-        raise LinkError(f"the built-in vehicle could not start: {exc}") from None
-    print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {vehicle.firmware}) on udp port "
-          f"{target.rsplit(':', 1)[1]}, speedup {speedup:g}", flush=True)
+    def start(self) -> None:
+        """Its clock starts (LinkError, one line, if it cannot)."""
+        from rov_mav.flight.session.link import LinkError
+        from sim_bridge.transport.link import TransportError
+
+        try:
+            self.process.start()
+        except TransportError as exc:
+            raise LinkError(f"the built-in vehicle could not start: {exc}") from None
+        print(f"built-in vehicle: simulated BlueROV2 Heavy (ArduSub {self.process.firmware}) on udp port "
+              f"{self.port}, speedup {self.speedup:g}", flush=True)
+
+    def stop(self) -> None:
+        self.process.stop()
 
 
 def _default_recording(mission) -> Path:
@@ -270,183 +294,139 @@ def _default_recording(mission) -> Path:
     return Path(f"out/run-{mission.name}/run.rrd")
 
 
-def _limits(args: argparse.Namespace, mission, limits_type):
-    """The run's limits: each flag, else the mission's own; a path deeper than --max-depth is refused here."""
-    lim = mission.limits
-    if args.max_depth is not None:
-        mission.check_depth(args.max_depth, "--max-depth")
-    tilt = math.radians(args.max_tilt) if args.max_tilt is not None else lim.max_tilt
-    return limits_type(max_depth=args.max_depth or lim.max_depth,
-                       max_tracking_error=args.max_tracking_error or lim.max_tracking_error,
-                       max_thrust=args.max_thrust or lim.max_thrust,
-                       max_tilt=tilt if tilt is not None else math.radians(DEFAULT_MAX_TILT_DEG))
-
-
-def _from_vehicle(session, args: argparse.Namespace):
-    """Connect and download the vehicle's mission (nothing on the vehicle changes)."""
-    from rov_mav.flight.session.vehicle_mission import vehicle_mission
-
-    vehicle = session.connect(args.heartbeat_timeout)
-    mission = vehicle_mission(session, plan_options(args))
-    report_skipped(mission)
-    print(f"mission downloaded from vehicle {vehicle.sysid}: {len(mission.segments)} segments, "
-          f"{mission.duration:.1f} s", flush=True)
-    return mission
-
-
-def main(args: argparse.Namespace) -> int:
-    # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
-    from rov_mav.control.controller import Controller
-    from rov_mav.flight.thrusters.actuation import Actuation
+def _refusal(args: argparse.Namespace) -> str | None:
+    """Why these options cannot make a run, in one line; None when they can."""
     from rov_mav.flight.run.guided import KIND as GUIDED_KIND
-    from rov_mav.flight.run.guided import GuidedStream
-    from rov_mav.flight.session.link import LinkError, Session
-    from rov_mav.flight.record.runlog import RunLog
-    from rov_mav.flight.run.run_options import THRUSTERS, VEHICLE, Limits, RunOptions
-    from rov_mav.flight.run.runner import Runner, warm_up
-    from rov_mav.flight.record.status import StatusLine
-    from rov_mav.mission.metrics import run_metrics, truth_metrics
-    from rov_mav.model.vehicle import load_flown_vehicle
+    from rov_mav.flight.run.run_options import THRUSTERS, VEHICLE
 
     if (args.mission is None) != args.mission_from_vehicle or (args.mission_from_vehicle and args.target is None):
-        print("rov-mav run: error: give a mission (a shipped mission's name or a file), or --mission-from-vehicle "
-              "with --target (the built-in vehicle starts with no mission)", file=sys.stderr)
-        return 2
-    mission = None if args.mission_from_vehicle else load_mission(args)
-    limits = None if mission is None else _limits(args, mission, Limits)
-    key = signing_key(args)
-    guided = args.controller == GUIDED_KIND
-    settings = None if guided else controller_settings(args)
-    kind = GUIDED_KIND if guided else settings.kind
-    model = load_flown_vehicle(args.vehicle)
+        return ("give a mission (a shipped mission's name or a file), or --mission-from-vehicle with --target (the "
+                "built-in vehicle starts with no mission)")
     for option, value in (("--vehicle-faults", args.vehicle_faults), ("--navigation", args.navigation)):
         if args.target is not None and value is not None:
-            print(f"rov-mav run: error: {option} applies to the built-in vehicle only (no --target)", file=sys.stderr)
-            return 2
+            return f"{option} applies to the built-in vehicle only (no --target)"
     if args.target is not None and args.speedup != 1.0:
-        print("rov-mav run: error: --speedup applies to the built-in vehicle only (no --target)", file=sys.stderr)
-        return 2
-    if guided and args.estimator != VEHICLE:
-        print(f"rov-mav run: error: --estimator {args.estimator} is the law's; --controller {GUIDED_KIND} flies on "
-              "ArduSub's own estimate", file=sys.stderr)
-        return 2
-    if guided and args.output != THRUSTERS:
-        print(f"rov-mav run: error: --output {args.output} carries a law's PWMs; --controller {GUIDED_KIND} flies on "
-              "ArduSub's own mixer", file=sys.stderr)
-        return 2
+        return "--speedup applies to the built-in vehicle only (no --target)"
+    if args.controller == GUIDED_KIND and args.estimator != VEHICLE:
+        return (f"--estimator {args.estimator} is the law's; --controller {GUIDED_KIND} flies on ArduSub's own "
+                "estimate")
+    if args.controller == GUIDED_KIND and args.output != THRUSTERS:
+        return f"--output {args.output} carries a law's PWMs; --controller {GUIDED_KIND} flies on ArduSub's own mixer"
+    return None
+
+
+def _choices(args: argparse.Namespace):
+    """The run's choices (`flight.run.assembly.Choices`) from the command line; ConfigError for a bad file."""
+    from rov_mav.flight.run.assembly import Choices, LimitFlags
+    from rov_mav.flight.run.guided import KIND as GUIDED_KIND
+    from rov_mav.flight.run.run_options import RunOptions
+    from rov_mav.model.vehicle import load_flown_vehicle
+
+    mission = None if args.mission_from_vehicle else load_mission(args)
+    flags = LimitFlags(args.max_depth, args.max_tracking_error, args.max_thrust, args.max_tilt)
     if mission is not None:
+        from rov_mav.flight.run.assembly import run_limits
+        run_limits(mission, flags)                     # a path deeper than --max-depth: refused before anything
         check_rerun_output(args, _default_recording(mission))
-    if args.realtime:
-        from rov_mav.flight.run.realtime import ask_realtime
-        granted, line = ask_realtime()
-        print(line, file=sys.stdout if granted else sys.stderr, flush=True)
-    bridge, target, session = None, args.target, None
-    sinks: list = [StatusLine()]
-    rerun_target = rerun = actuation = controller = None
-
-    def prepare_compute() -> None:
-        """The recording, the allocation and the law, and their first-call costs (imports, compiled code)."""
-        nonlocal rerun_target, rerun, actuation, controller
-        rerun_target, rerun = rerun_sink(args, model, mission, _default_recording(mission))
-        actuation = Actuation(model, limits.max_thrust, diffuse=args.pwm_rounding == "diffuse",
-                              pretension=args.pretension == "on", probe=args.thruster_check == "on" and not guided)
-        controller = None if guided else Controller(model, settings)
-        warm_up(mission, controller, actuation, 1.0 / args.rate, args.approach_speed,
-                own_estimate=args.estimator == "model")
-
-    try:
-        if target is None:
-            # The built-in vehicle's clock runs from its start, under the mission's disturbance: what is slow to
-            # start goes first (at --speedup 10 a second of it would be ten of drift before the first tick), the
-            # vehicle's own process loading meanwhile.
-            bridge, target = _launch_vehicle(mission, args.speedup, key, args.vehicle_faults, args.navigation)
-            prepare_compute()
-            _start_vehicle(bridge, target, args.speedup)
-        session = Session.open(target, sysid=args.sysid or 255, baud=args.baud, rate_hint=args.speedup,
-                               signing_key=key)
-        if mission is None:
-            mission = _from_vehicle(session, args)
-            limits = _limits(args, mission, Limits)
-            check_rerun_output(args, _default_recording(mission))
-        if actuation is None:
-            prepare_compute()
-    except (LinkError, ConfigError) as exc:
-        if session is not None:
-            session.close()
-        if bridge is not None:
-            bridge.stop()
-        if rerun is not None:
-            rerun.close()
-        if isinstance(exc, ConfigError):
-            raise
-        print(f"rov-mav run: error: {exc}", file=sys.stderr)
-        return 1
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
                          velocity_blend=args.velocity_blend, output=args.output, predict=args.predict == "on",
-                         thruster_check=args.thruster_check == "on", estimator=args.estimator,
-                         limits=limits)
-    true_disturbance = mission.environment.constant_disturbance if bridge is not None else None
+                         thruster_check=args.thruster_check == "on", estimator=args.estimator)
+    return Choices(mission=mission, model=load_flown_vehicle(args.vehicle),
+                   settings=None if args.controller == GUIDED_KIND else controller_settings(args),
+                   options=options, limit_flags=flags, target=args.target, sysid=args.sysid or 255, baud=args.baud,
+                   speedup=args.speedup, key=signing_key(args), guided_rate=args.guided_rate, log=args.log,
+                   diffuse=args.pwm_rounding == "diffuse", pretension=args.pretension == "on")
+
+
+def _flight(args: argparse.Namespace, choices):
+    """The flight of `choices`, with what only the command line can give it: the built-in vehicle, the recording,
+    the mission downloaded from the vehicle."""
+    from rov_mav.flight.run.assembly import Flight
+    from rov_mav.flight.session.vehicle_mission import vehicle_mission
+
+    def launch(mission):
+        vehicle = _BuiltIn(mission, args.speedup, choices.key, args.vehicle_faults, args.navigation)
+        return vehicle, vehicle.target
+
+    def recording(mission):
+        check_rerun_output(args, _default_recording(mission))
+        return rerun_sink(args, choices.model, mission, _default_recording(mission))
+
+    def from_vehicle(session):
+        """Connect and download the vehicle's mission (nothing on the vehicle changes)."""
+        vehicle = session.connect(args.heartbeat_timeout)
+        mission = vehicle_mission(session, plan_options(args))
+        report_skipped(mission)
+        print(f"mission downloaded from vehicle {vehicle.sysid}: {len(mission.segments)} segments, "
+              f"{mission.duration:.1f} s", flush=True)
+        return mission
+
+    return Flight(choices, launch, recording, from_vehicle)
+
+
+def main(args: argparse.Namespace) -> int:
+    # Imported here, when the command runs, so that `rov-mav --help` and the other commands start fast.
+    from rov_mav.flight.session.link import LinkError
+
+    if why := _refusal(args):
+        print(f"rov-mav run: error: {why}", file=sys.stderr)
+        return 2
+    choices = _choices(args)
+    if args.realtime:
+        from rov_mav.flight.run.realtime import ask_realtime
+        granted, line = ask_realtime()
+        print(line, file=sys.stdout if granted else sys.stderr, flush=True)
+    flight = _flight(args, choices)
+    try:
+        flight.open()
+    except (LinkError, ConfigError) as exc:
+        flight.close()
+        if isinstance(exc, ConfigError):
+            raise
+        print(f"rov-mav run: error: {exc}", file=sys.stderr)
+        return 1
     try:   # whatever fails from here on, the link and the built-in vehicle are closed
-        if args.log:
-            run_log = RunLog(args.log)
-            run_log.write_run_info({
-                "mission": mission.name, "mission_source": mission.source, "controller": kind,
-                "rate_hz": args.rate, "output": args.output, "target": args.target or "built-in vehicle",
-                "dry_run": args.dry_run,
-                "limits": dataclasses.asdict(limits),
-                "true_disturbance": None if true_disturbance is None else [float(v) for v in true_disturbance]})
-            session.taps.append(run_log.log_mavlink)
-            sinks.append(run_log)
-        if rerun is not None:
-            sinks.append(rerun)
-        stream = GuidedStream(session, args.guided_rate) if guided else None
-        runner = Runner(session, mission, controller, actuation, options, sinks, true_disturbance, stream)
-        result = runner.run()
+        result = flight.fly()
     finally:
-        for sink in sinks:
-            sink.close()
-        session.close()
-        if bridge is not None:
-            bridge.stop()
-    loop = result.loop_figures()
-    flown = result.t >= 0.0   # the mission proper, without the lead-in to its start
-    metrics = run_metrics(mission.name, kind, result.t[flown], result.eta[flown], result.eta_d[flown],
-                          result.tau[flown], result.tau_hat[flown], true_disturbance, result.completed)
-    metrics.update(truth_metrics(result.truth[flown], result.eta_d[flown], result.eta[flown],
-                                 result.reported[flown]))
-    metrics["loop"] = loop
-    if result.own_estimator is not None:
-        metrics["own_estimator"] = result.own_estimator
+        flight.close()
+    metrics = flight.metrics(result)
     if args.metrics:
         path = Path(args.metrics)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(metrics, indent=2) + "\n")
+    for line in _report(args, flight, result, metrics):
+        print(line, flush=True)
+    return result.code
+
+
+def _report(args: argparse.Namespace, flight, result, metrics: dict) -> list[str]:
+    """What the terminal shows after the run: how it ended, the tracking, the loop, the delays, the recording."""
+    loop, cm = metrics["loop"], lambda key: f"{metrics[key] * 100:.2f} cm"
     status = ("completed" if result.code == 0 else f"completed, exit {result.code}: {result.reason}") \
         if result.completed else f"NOT completed ({result.reason})"
-    print(f"{mission.name} / {kind}{' (dry run)' if args.dry_run else ''}: {status}, "
-          f"{metrics['duration_s']:.1f} s of mission flown")
+    lines = [f"{flight.mission.name} / {flight.choices.kind}{' (dry run)' if args.dry_run else ''}: {status}, "
+             f"{metrics['duration_s']:.1f} s of mission flown"]
     if result.t.size:
-        print(f"  position error RMS {metrics['rms_position_error_m'] * 100:.2f} cm (steady "
-              f"{metrics['rms_position_error_steady_m'] * 100:.2f} cm, max {metrics['max_position_error_m'] * 100:.2f}"
-              f" cm); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad"
-              + (f"; against the truth (SIM_STATE) RMS {metrics['rms_position_error_truth_m'] * 100:.2f} cm, max "
-                 f"{metrics['max_position_error_truth_m'] * 100:.2f} cm" if "rms_position_error_truth_m" in metrics
-                 else ""))
+        truth = f"; against the truth (SIM_STATE) RMS {cm('rms_position_error_truth_m')}, max " \
+            f"{cm('max_position_error_truth_m')}" if "rms_position_error_truth_m" in metrics else ""
+        lines.append(f"  position error RMS {cm('rms_position_error_m')} (steady {cm('rms_position_error_steady_m')}, "
+                     f"max {cm('max_position_error_m')}); attitude RMS {metrics['rms_attitude_error_rad']:.4f} rad"
+                     + truth)
         if "rms_estimate_error_truth_m" in metrics:
-            print(f"  the position flown on ({args.estimator}'s estimate) is {metrics['rms_estimate_error_truth_m'] * 100:.2f}"
-                  f" cm RMS from the truth"
-                  + (f"; the vehicle's own estimate {metrics['rms_vehicle_estimate_error_truth_m'] * 100:.2f} cm"
-                     if args.estimator != "vehicle" else ""))
-    print(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in to "
-          f"command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters moved "
-          f"{loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)", flush=True)
-    print(f"  delays: round trip {loop['round_trip_ms']:.1f} ms (TIMESYNC); state predicted "
-          + (f"{loop['horizon_p50_ms']:.1f} ms ahead (p50; p99 {loop['horizon_p99_ms']:.1f} ms)" if args.predict == "on"
-             else "not at all (--predict off)")
-          + (f"; this process stalled {loop['stalls']} time(s)" if loop['stalls'] else ""), flush=True)
-    print(f"  rerun: {rerun_target.describe()}")
-    if rerun is not None:
-        print(f"  {rerun.stats.describe(1.0 / args.rate)}")
-    return result.code
+            own = f"; the vehicle's own estimate {cm('rms_vehicle_estimate_error_truth_m')}" \
+                if args.estimator != "vehicle" else ""
+            lines.append(f"  the position flown on ({args.estimator}'s estimate) is "
+                         f"{cm('rms_estimate_error_truth_m')} RMS from the truth" + own)
+    lines.append(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in "
+                 f"to command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters "
+                 f"moved {loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)")
+    predicted = f"{loop['horizon_p50_ms']:.1f} ms ahead (p50; p99 {loop['horizon_p99_ms']:.1f} ms)" \
+        if args.predict == "on" else "not at all (--predict off)"
+    stalls = f"; this process stalled {loop['stalls']} time(s)" if loop["stalls"] else ""
+    lines.append(f"  delays: round trip {loop['round_trip_ms']:.1f} ms (TIMESYNC); state predicted {predicted}{stalls}")
+    lines.append(f"  rerun: {flight.rerun_target.describe()}")
+    if flight.rerun is not None:
+        lines.append(f"  {flight.rerun.stats.describe(1.0 / args.rate)}")
+    return lines

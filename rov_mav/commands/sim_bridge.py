@@ -145,6 +145,25 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step", type=number(MIN_STEP, MAX_STEP), default=DEFAULT_STEP, metavar="S",
                    help="fixed physics and main-loop step in simulated seconds (default %(default)s: 400 Hz)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the sensor noise and the link faults (default 0)")
+    _add_fault_options(p)
+    p.add_argument("--log-dir", metavar="DIR",
+                   help="write the vehicle's own DataFlash logs (.BIN, as ArduSub's logs/ folder: DIR/00000001.BIN "
+                        "and on, LASTLOG.TXT; one file from each arming with LOG_DISARMED 0, the default, or from "
+                        "each boot with LOG_DISARMED 1; LOG_FILE_DSRMROT 1 starts a new one after each disarm). "
+                        "`rov-mav analyze FILE.BIN` reviews one. Default: none written")
+    p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
+                   help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
+    add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
+                           "drops frames not signed with the key, except RADIO_STATUS/RADIO and except on the first "
+                           "link (the first --out, else the first --listen: ArduPilot's channel 0, USB, taken as "
+                           "secure). Without a key, a ground station can "
+                           "set one with SETUP_SIGNING (MAVProxy: `signing setup PASSPHRASE`), refused while armed; "
+                           "an all-zero key turns signing off.")
+    p.set_defaults(func=run)
+
+
+def _add_fault_options(p: argparse.ArgumentParser) -> None:
+    """What degrades on purpose: the links, the vehicle, its navigation."""
     p.add_argument("--link-faults", type=_faults, metavar="SPEC|FILE",
                    help="degrade the links on purpose, both directions, in vehicle time: comma-separated "
                         "loss=P (0..1 or %%), delay=T, jitter=T (uniform +-T; order kept), dup=P, reorder=P "
@@ -169,20 +188,6 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "outliers and dropouts), fused by an EKF3 stand-in; or a YAML file with a navigation: block "
                         "(preset: and any of imu:, compass:, bar30:, dvl:, ugps: with their parameters). Replaces "
                         "an --environment file's navigation")
-    p.add_argument("--log-dir", metavar="DIR",
-                   help="write the vehicle's own DataFlash logs (.BIN, as ArduSub's logs/ folder: DIR/00000001.BIN "
-                        "and on, LASTLOG.TXT; one file from each arming with LOG_DISARMED 0, the default, or from "
-                        "each boot with LOG_DISARMED 1; LOG_FILE_DSRMROT 1 starts a new one after each disarm). "
-                        "`rov-mav analyze FILE.BIN` reviews one. Default: none written")
-    p.add_argument("--param", action="append", default=[], type=_param, metavar="NAME=VALUE",
-                   help="start with parameter NAME set to VALUE, e.g. FS_PILOT_INPUT=0 (repeatable)")
-    add_signing_options(p, "start with this key, as ArduSub with a key stored: every link signs what it sends and "
-                           "drops frames not signed with the key, except RADIO_STATUS/RADIO and except on the first "
-                           "link (the first --out, else the first --listen: ArduPilot's channel 0, USB, taken as "
-                           "secure). Without a key, a ground station can "
-                           "set one with SETUP_SIGNING (MAVProxy: `signing setup PASSPHRASE`), refused while armed; "
-                           "an all-zero key turns signing off.")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

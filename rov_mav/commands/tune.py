@@ -132,50 +132,29 @@ def main(args: argparse.Namespace) -> int:
     plot_dir = require_writable(args.plot or out.parent, folder=True, option="--plot")
     check_rerun_output(args, plot_dir / "tune.rrd")
     options = pso.PSOOptions(args.particles, args.iterations, args.w, args.c1, args.c2, args.velocity_clamp)
-    if args.bounds_file:
-        lower, upper = tuning.load_bounds(args.bounds_file, start.family)
-    elif args.bounds:
-        lower, upper = np.full(start.family.n_tuned, args.bounds[0]), np.full(start.family.n_tuned, args.bounds[1])
-    else:
-        lower, upper = start.family.default_bounds()
+    lower, upper = _bounds(args, start)
     scenarios = (load_scenarios(args.scenarios, mission.environment) if args.scenarios
                  else [nominal(mission.environment)])
     problem = tuning.build_problem(mission, start, model, scenarios, args.cost, args.aggregate, args.duration,
                                    navigation_errors=navigation_errors)
-
-    if args.cluster:
-        from rov_mav.offline.cluster import (
-            DaskBackend,  # dask is optional: imported only when asked for
-        )
-        backend = DaskBackend(args.cluster)
-    else:
-        backend = tuning.ThreadBackend(args.threads)
-    print(f"tuning {start.kind} on {mission.name}: {lower.size} gains, {options.particles} particles x {options.iterations} iterations x "
-          f"{len(scenarios)} scenario(s), {problem.ref.shape[0] - 1} ticks each, cost '{args.cost}', "
-          f"{args.cluster or f'{args.threads} threads'}")
     t0 = time.perf_counter()
-    with backend, progress_bar(total=options.iterations, desc="tune", unit="it") as bar:
-        def progress(iteration: int, best: float) -> None:
-            bar.set_postfix(best=f"{best:.5g}", refresh=False)
-            bar.update(1)
-
-        result = tuning.tune(problem, lower, upper, options, args.seed, backend, progress)
-        objective = problem.costs(np.stack([start.gains, result.best_position]), backend)
+    result, objective = _search(args, problem, options, lower, upper, start,
+                                f"tuning {start.kind} on {mission.name}: {lower.size} gains, {options.particles} "
+                                f"particles x {options.iterations} iterations x {len(scenarios)} scenario(s), "
+                                f"{problem.ref.shape[0] - 1} ticks each, cost '{args.cost}', "
+                                f"{args.cluster or f'{args.threads} threads'}")
     elapsed = time.perf_counter() - t0
     if result.best_cost >= loop_kernel.DIVERGED_COST:
         print(f"rov-mav tune: every particle diverged or saturated the thrusters (cost {loop_kernel.DIVERGED_COST:g}); "
               "no gains written: widen --bounds or check the mission's limits and the vehicle file", file=sys.stderr)
         return 1
-
     tuned = start.with_gains(result.best_position)
     write_gains(out, tuned, f"rov-mav tune {mission.name}: cost {args.cost} = {result.best_cost!r} "
                             f"({args.aggregate} over {len(scenarios)} scenario(s))\n"
                             f"{options.particles} particles x {options.iterations} iterations, seed {args.seed}, "
                             f"w {options.w}, c1 {options.c1}, c2 {options.c2}")
     plot_dir.mkdir(parents=True, exist_ok=True)
-    from rov_mav.offline.plots import (
-        plot_convergence,  # matplotlib loads only when a figure is drawn
-    )
+    from rov_mav.offline.plots import plot_convergence   # matplotlib loads only when a figure is drawn
 
     figure = plot_convergence(result.cost_history, result.position_history,
                               f"PSO on {mission.name} ({args.cost} cost)", plot_dir / "convergence.png")
@@ -191,6 +170,34 @@ def main(args: argparse.Namespace) -> int:
     _print_summary(comparison, tuned, result, elapsed, out, figure)
     _log_to_rerun(args, plot_dir / "tune.rrd", result, traces["tuned"], model, mission)
     return 0
+
+
+def _bounds(args: argparse.Namespace, start) -> tuple[np.ndarray, np.ndarray]:
+    """The search box: --bounds-file, else --bounds for every gain, else the family's defaults."""
+    if args.bounds_file:
+        return tuning.load_bounds(args.bounds_file, start.family)
+    if args.bounds:
+        n = start.family.n_tuned
+        return np.full(n, args.bounds[0]), np.full(n, args.bounds[1])
+    return start.family.default_bounds()
+
+
+def _search(args: argparse.Namespace, problem, options, lower, upper, start, heading: str):
+    """The swarm's search on the threads or the Dask cluster asked for, with a progress bar; (result, the objective
+    of the starting and the best gains)."""
+    if args.cluster:
+        from rov_mav.offline.cluster import DaskBackend   # dask is optional: imported only when asked for
+        backend = DaskBackend(args.cluster)
+    else:
+        backend = tuning.ThreadBackend(args.threads)
+    print(heading)
+    with backend, progress_bar(total=options.iterations, desc="tune", unit="it") as bar:
+        def progress(iteration: int, best: float) -> None:
+            bar.set_postfix(best=f"{best:.5g}", refresh=False)
+            bar.update(1)
+
+        result = tuning.tune(problem, lower, upper, options, args.seed, backend, progress)
+        return result, problem.costs(np.stack([start.gains, result.best_position]), backend)
 
 
 def _log_to_rerun(args: argparse.Namespace, default_file: Path, result: pso.PSOResult, trace, model: Vehicle,

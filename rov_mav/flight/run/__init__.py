@@ -1,5 +1,6 @@
 """A run, phase by phase: what it is asked, claiming the vehicle, the outputs, the loop, the safe stop.
 
+- assembly: a run built from what was asked, flown, closed on every path, and its metrics
 - claim: identify the vehicle, hold its frame to the vehicle file, judge the link, take the GCS role
 - control_loop: the ticks, the watchdog, the limits, stalls and the hand-over
 - guided: --controller ardusub-guided: the reference streamed to ArduSub's GUIDED

@@ -12,6 +12,7 @@ from rov_mav.mission.metrics import finite_percentile, loop_figures, pwm_activit
 HANDED_OVER = 3                  # exit status: the pilot took the vehicle over
 THRUSTERS, MOTOR_TEST = "thrusters", "motor-test"   # how the PWMs reach the outputs (`RunOptions.output`)
 VEHICLE, MODEL = "vehicle", "model"                 # whose position estimate the law flies on (`RunOptions.estimator`)
+DEFAULT_MAX_TILT_DEG = 15.0      # deg of roll or pitch: a BlueROV2 flies level; beyond this the law has lost it
 
 
 @dataclass(frozen=True)

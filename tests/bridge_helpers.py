@@ -1,7 +1,5 @@
-"""Test support for the bridge tests: free ports, the bridge as a subprocess, and a pymavlink ground station.
-
-(A module of helpers, named test_bridge_* so it sits with the bridge's tests; it holds no tests itself.)
-"""
+"""Test support for the bridge tests: free ports, the bridge in a thread or a subprocess, a pymavlink ground station,
+a console program driven on stdin (MAVProxy), and the servo outputs as a station reads them."""
 
 from __future__ import annotations
 
@@ -22,6 +20,7 @@ mavutil.set_dialect("ardupilotmega")   # MAVLink 2 even if another test imported
 ROV_MAV = str(Path(sys.executable).with_name("rov-mav"))
 WAIT = 20.0            # s of wall time allowed for anything that should take a fraction of it
 RETRY = 1.0            # s of wall time before a request is sent again
+SPEEDUP = 10.0         # a bridge alone (no runner beside it) holds 10x on a loaded 2-core machine
 
 
 def free_port(kind: int = socket.SOCK_DGRAM) -> int:
@@ -246,3 +245,69 @@ class Gcs:
         if self._thread is not None:
             self._thread.join(WAIT)
         self.conn.close()
+
+
+MAVPROXY = str(Path(sys.executable).with_name("mavproxy.py"))
+
+
+class Console:
+    """A console program with its stdin piped and its output in a file we poll."""
+
+    def __init__(self, args: list[str], log: Path, cwd: Path):
+        self.log = log
+        with open(log, "w") as out:
+            self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
+                                         cwd=cwd, text=True)
+        self.seen = 0
+
+    def expect(self, text: str, timeout: float = WAIT) -> None:
+        """Wait for `text` in the output after what earlier expectations matched."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            output = self.log.read_text()
+            at = output.find(text, self.seen)
+            if at >= 0:
+                self.seen = at + len(text)
+                return
+            assert self.proc.poll() is None, f"exited early:\n{output}"
+            time.sleep(0.1)
+        raise AssertionError(f"no {text!r} within {timeout} s in:\n{self.log.read_text()}")
+
+    def poll(self, line: str, text: str, timeout: float = WAIT) -> None:
+        """Send `line` every second until `text` appears."""
+        deadline = time.monotonic() + timeout
+        while True:
+            self.send(line)
+            try:
+                return self.expect(text, 1.0)
+            except AssertionError:
+                if time.monotonic() > deadline:
+                    raise
+
+    def send(self, line: str) -> None:
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def close(self, command: str) -> None:
+        """Ask the program to quit with `command`, kill it if it has not within a few seconds."""
+        if self.proc.poll() is None:
+            try:
+                self.send(command)
+                self.proc.stdin.close()
+                self.proc.wait(5)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+                self.proc.wait()
+
+
+def servo(m) -> list[int]:
+    return [getattr(m, f"servo{i}_raw") for i in range(1, 9)]
+
+
+def wait_servo(gcs: Gcs, cond, timeout: float = WAIT):
+    return gcs.recv("SERVO_OUTPUT_RAW", timeout, lambda m: cond(servo(m)))
+
+
+def use_passthrough(gcs: Gcs) -> None:
+    for n in range(1, 9):
+        assert gcs.set_param(f"SERVO{n}_FUNCTION", 50 + n, mavutil.mavlink.MAV_PARAM_TYPE_INT16).param_value == 50 + n
