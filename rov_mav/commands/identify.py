@@ -92,6 +92,7 @@ def load_dataflash_run(path: str, mission, start: float | None, prior):
     from rov_mav.review.analysis import vehicle_time
     from rov_mav.review.dive_review import read_dive
     from rov_mav.review.reference import mission_start
+    from rov_mav.review.series import last_known
 
     _, dive = read_dive(Path(path))
     _same_frame(path, dive, prior)
@@ -109,8 +110,8 @@ def load_dataflash_run(path: str, mission, start: float | None, prior):
         kept = (dive.state_t >= t0) & (dive.state_t <= t0 + mission.duration)
         what = f"between the mission's start ({t0:.2f} s) and its end"
     else:
-        armed_at = np.searchsorted(vehicle_time(dive, dive.heartbeat_wall), dive.state_t, side="right") - 1
-        kept = (armed_at >= 0) & dive.armed[np.maximum(armed_at, 0)] if dive.armed.size else dive.state_t < 0
+        kept = last_known(vehicle_time(dive, dive.heartbeat_wall), dive.armed, dive.state_t) if dive.armed.size \
+            else np.zeros(dive.state_t.size, dtype=bool)
         what = "armed"
     t = dive.state_t[kept]
     if t.size < 10:

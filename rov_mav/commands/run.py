@@ -317,22 +317,22 @@ def _refusal(args: argparse.Namespace) -> str | None:
 
 def _choices(args: argparse.Namespace):
     """The run's choices (`flight.run.assembly.Choices`) from the command line; ConfigError for a bad file."""
-    from rov_mav.flight.run.assembly import Choices, LimitFlags
+    from rov_mav.flight.run.assembly import Choices, LimitFlags, run_limits
     from rov_mav.flight.run.guided import KIND as GUIDED_KIND
-    from rov_mav.flight.run.run_options import RunOptions
+    from rov_mav.flight.run.run_options import Limits, RunOptions
     from rov_mav.model.vehicle import load_flown_vehicle
 
     mission = None if args.mission_from_vehicle else load_mission(args)
     flags = LimitFlags(args.max_depth, args.max_tracking_error, args.max_thrust, args.max_tilt)
+    limits = Limits() if mission is None else run_limits(mission, flags)   # set once the vehicle's is downloaded
     if mission is not None:
-        from rov_mav.flight.run.assembly import run_limits
-        run_limits(mission, flags)                     # a path deeper than --max-depth: refused before anything
         check_rerun_output(args, _default_recording(mission))
     options = RunOptions(rate=args.rate, dry_run=args.dry_run, force=args.force, sysid=args.sysid,
                          heartbeat_timeout=args.heartbeat_timeout, position_timeout=args.position_timeout,
                          link_timeout=args.link_timeout, approach_speed=args.approach_speed,
                          velocity_blend=args.velocity_blend, output=args.output, predict=args.predict == "on",
-                         thruster_check=args.thruster_check == "on", estimator=args.estimator)
+                         thruster_check=args.thruster_check == "on", estimator=args.estimator,
+                         limits=limits)
     return Choices(mission=mission, model=load_flown_vehicle(args.vehicle),
                    settings=None if args.controller == GUIDED_KIND else controller_settings(args),
                    options=options, limit_flags=flags, target=args.target, sysid=args.sysid or 255, baud=args.baud,
@@ -351,7 +351,6 @@ def _flight(args: argparse.Namespace, choices):
         return vehicle, vehicle.target
 
     def recording(mission):
-        check_rerun_output(args, _default_recording(mission))
         return rerun_sink(args, choices.model, mission, _default_recording(mission))
 
     def from_vehicle(session):
@@ -361,6 +360,7 @@ def _flight(args: argparse.Namespace, choices):
         report_skipped(mission)
         print(f"mission downloaded from vehicle {vehicle.sysid}: {len(mission.segments)} segments, "
               f"{mission.duration:.1f} s", flush=True)
+        check_rerun_output(args, _default_recording(mission))
         return mission
 
     return Flight(choices, launch, recording, from_vehicle)

@@ -52,7 +52,8 @@ def run_limits(mission: Mission, flags: LimitFlags) -> Limits:
 
 
 class BuiltIn(Protocol):
-    """The built-in vehicle in a process of its own: `launch` loads it, `start` starts its clock (LinkError)."""
+    """The built-in vehicle in a process of its own, loading once made: `start` starts its clock (LinkError),
+    `stop` ends it."""
 
     def start(self) -> None: ...
 
@@ -66,7 +67,7 @@ class Choices:
     mission: Mission | None                 # None: the mission stored on the vehicle
     model: Vehicle
     settings: ControllerSettings | None     # None: ArduSub's GUIDED flies the reference (no law of ours)
-    options: RunOptions                     # its limits are set once the mission is known
+    options: RunOptions                     # with the mission's limits (`run_limits`) when it is known
     limit_flags: LimitFlags
     target: str | None                      # None: the built-in vehicle
     sysid: int
@@ -117,14 +118,13 @@ class Flight:
         self.session = Session.open(target, sysid=c.sysid, baud=c.baud, rate_hint=c.speedup, signing_key=c.key)
         if self.mission is None:
             self.mission = self._from_vehicle(self.session)
+            self.options = dataclasses.replace(c.options, limits=run_limits(self.mission, c.limit_flags))
         if self.actuation is None:
             self._prepare_compute()
 
     def _prepare_compute(self) -> None:
-        """The limits, the recording, the allocation and the law, and their first-call costs (imports, compiled
-        code)."""
+        """The recording, the allocation and the law, and their first-call costs (imports, compiled code)."""
         c = self.choices
-        self.options = dataclasses.replace(c.options, limits=run_limits(self.mission, c.limit_flags))
         self.rerun_target, self.rerun = self._recording(self.mission)
         guided = c.settings is None
         self.actuation = Actuation(c.model, self.options.limits.max_thrust, diffuse=c.diffuse,

@@ -22,7 +22,7 @@ from scipy.signal import savgol_filter
 from rov_mav.config import ConfigError
 from rov_mav.model.dynamics import body_velocity
 from rov_mav.model.frames import MOTOR_FUNCTION_BASE, Frame
-from rov_mav.offline.identify.force_balance import Run, stretches
+from rov_mav.offline.identify.force_balance import gap_free
 
 SMOOTHING = 1.0               # s, span of the reference's smoothing
 MIN_STRETCH = 5.0             # s: armed stretches shorter than this are left out
@@ -74,7 +74,7 @@ def own_reference(t: np.ndarray, eta: np.ndarray, span: float = SMOOTHING) -> np
     the heading unwrapped before smoothing."""
     out = np.empty((t.size, 18))
     unwrapped = eta.copy()
-    for piece in stretches(Run("", t, eta, eta, eta, eta, t, eta, t)):
+    for piece in gap_free(t):
         unwrapped[piece, 3:] = np.unwrap(eta[piece, 3:], axis=0)
         dt = float(np.median(np.diff(t[piece])))
         window = min(2 * int(round(span / dt / 2)) + 1, (piece.stop - piece.start) // 2 * 2 - 1)

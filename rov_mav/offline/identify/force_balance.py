@@ -88,9 +88,14 @@ def rows(run: Run, keep: np.ndarray) -> Run:
 
 def stretches(run: Run) -> list[slice]:
     """Stretches of a run without a gap in its ticks (stale telemetry, a pause)."""
-    dt = np.diff(run.t)
+    return gap_free(run.t)
+
+
+def gap_free(t: np.ndarray) -> list[slice]:
+    """Stretches of increasing times `t` without a gap (GAP_FACTOR median periods)."""
+    dt = np.diff(t)
     breaks = np.flatnonzero(dt > GAP_FACTOR * np.median(dt)) + 1
-    edges = np.concatenate([[0], breaks, [len(run.t)]])
+    edges = np.concatenate([[0], breaks, [len(t)]])
     return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b - a > 1]
 
 
