@@ -207,6 +207,7 @@ class Mission:
         self.skipped = skipped
         self.segments = _build_segments(spec, source, self.labels)
         self.duration = self.segments[-1].t0 + self.segments[-1].duration
+        self._starts = np.array([seg.t0 for seg in self.segments])
         if spec.limits.max_depth is not None:
             self.check_depth(spec.limits.max_depth, "limits.max_depth")
 
@@ -234,9 +235,11 @@ class Mission:
         flat = np.atleast_1d(t).ravel()
         out = np.zeros((flat.size, REFERENCE_COLUMNS))
         out[:, [0, 1, 2, 5]] = self.segments[0].p0
-        for i, seg in enumerate(self.segments):
+        starts = np.searchsorted(self._starts, flat, side="right") - 1    # the latest segment begun at each t
+        for i in np.unique(starts[starts >= 0]):
+            seg = self.segments[i]
             last = i == len(self.segments) - 1
-            mask = flat >= seg.t0 if last else (flat >= seg.t0) & (flat < seg.t0 + seg.duration)
+            mask = starts == i if last else (starts == i) & (flat < seg.t0 + seg.duration)
             if not mask.any():
                 continue
             tau = flat[mask] - seg.t0

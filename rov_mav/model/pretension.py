@@ -54,10 +54,8 @@ def _shift(f: np.ndarray, n: np.ndarray, floor: np.ndarray, previous: float) -> 
                              (floor[support] - f[support]) / n[support]]), axis=0)
     candidates = np.concatenate([[0.0, previous], ends.ravel()])
 
-    def allowed(a: float) -> bool:
-        return bool(np.all(np.abs(f[support] + a * n[support]) >= floor[support] - 1e-9))
-
-    feasible = [a for a in candidates if allowed(a)]
+    clear = np.abs(f[support] + candidates[:, None] * n[support]) >= floor[support] - 1e-9
+    feasible = candidates[clear.all(axis=1)].tolist()
     same_side = [a for a in feasible if a * previous >= 0.0]
     if same_side:
         return min(same_side, key=abs)

@@ -15,7 +15,6 @@ Pure: no I/O; times are vehicle seconds.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -188,11 +187,13 @@ class OverrideEcho:
     waiting for two within 1 s took a joystick on another link up to 2 s of vehicle time to notice)."""
 
     def __init__(self, capacity: int = ECHO_MEMORY):
-        self.sent: deque[np.ndarray] = deque(maxlen=capacity)
+        self._sent = np.full((capacity, 8), np.nan)   # a ring of the last `capacity` overrides (NaN: unused)
+        self._next = 0
         self._upper: np.ndarray | None = None       # RC 9-16 as the run found them
 
     def sent_now(self, pwm) -> None:
-        self.sent.append(np.asarray(pwm[:8], dtype=float))
+        self._sent[self._next % len(self._sent)] = np.asarray(pwm[:8], dtype=float)
+        self._next += 1
 
     def rc(self, channels: list[int]) -> bool:
         """An RC_CHANNELS report (channels 1-16); True when someone else is writing."""
@@ -206,4 +207,6 @@ class OverrideEcho:
         return not self._ours(np.asarray(outputs, dtype=float))
 
     def _ours(self, row: np.ndarray) -> bool:
-        return not self.sent or any(np.all(np.abs(row - pwm) <= ECHO_TOLERANCE) for pwm in self.sent)
+        if self._next == 0:
+            return True
+        return bool(np.any(np.all(np.abs(self._sent - row) <= ECHO_TOLERANCE, axis=1)))
