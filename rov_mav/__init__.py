@@ -5,6 +5,7 @@ telemetry, review; the command line on top.
 
 - cli: the `rov-mav` command, one subcommand per module of commands/
 - config: YAML files read with one-line, located errors
+- fault_items: the grammar the link-fault and vehicle-fault options share (KEY=VALUE@TIME items, inline or a file)
 - shipped: the missions, scenario sets and vehicles shipped in data/, found by name
 - signing: MAVLink 2 signing shared by the runner and the built-in vehicle
 - sitl: ArduPilot's ArduSub SITL as a child process, for tests and tools

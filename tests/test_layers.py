@@ -29,7 +29,8 @@ MAY_IMPORT = {
     "rov_mav.review": {"rov_mav.model", "rov_mav.control", "rov_mav.mission", "rov_mav.offline", "rov_mav.flight",
                        "rov_mav.telemetry"},
 }
-FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing", "rov_mav.sitl", "rov_mav.shipped"}
+FOUNDATION = {"rov_mav", "rov_mav.config", "rov_mav.units", "rov_mav.signing", "rov_mav.sitl", "rov_mav.shipped",
+              "rov_mav.fault_items"}
 # The top: the command line and one module per subcommand; it may import any layer, and no layer may import it.
 TOP = ("rov_mav.cli", "rov_mav.commands")
 # Libraries that belong to the shell: none of them may be imported below it.

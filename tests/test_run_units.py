@@ -12,6 +12,7 @@ from rov_mav.flight.record.history import History
 from rov_mav.flight.session.link import mavlink
 from rov_mav.flight.session.stations import ECHO_MEMORY, OverrideEcho, Sighting, StationWatch, judge
 from rov_mav.flight.session.vehicle_clock import VehicleClock
+from rov_mav.flight.session.vehicle_events import EXIT_REBOOT, RebootWatch
 from rov_mav.flight.state.vehicle_state import StateDecoder
 from rov_mav.mission.approach import approach
 from rov_mav.model import dynamics
@@ -68,6 +69,31 @@ def test_a_lost_attitude_costs_one_sample_not_every_later_pairing():
             states.append(decoder.state(received=0.0))
     assert [s.eta[0] for s in states] == [k for k in range(20) if k != 5] + [100.0, 101.0]
     assert all(s.eta[0] == s.eta[5] for s in states)                         # position and attitude of one period
+
+
+def test_a_run_meets_a_reboot_once_its_clock_has_seen_it_and_reads_mission_time_across_it():
+    """A reboot before the run is not its own; one during it ends it (or names the exit when first seen while
+    stopping), and a time after it reads as if the vehicle's clock had run on."""
+    clock = VehicleClock()
+    clock.observe(500.0, wall=0.0)
+    clock.observe(2.0, wall=0.1)                               # an earlier reboot: not this run's
+    watch = RebootWatch(clock)
+    boot = mavlink.MAVLink_heartbeat_message(12, 3, 0, 0, mavlink.MAV_STATE_ACTIVE, 3)
+    for t in np.arange(2.0, 60.0, 0.5):
+        clock.observe(t, wall=t)
+    assert watch.while_flying(boot, "HEARTBEAT", 60.0) is None
+    assert watch.while_stopping(0, "mission complete") == (0, "mission complete")
+    assert watch.time_lost(59.5) == 0.0
+    boot.system_status = mavlink.MAV_STATE_BOOT                # it says it is booting before its clock is seen back
+    assert "rebooted" in watch.while_flying(boot, "HEARTBEAT", 60.0)
+    clock.observe(3.0, wall=61.0)                              # its clock went back from 59.5 s to 3 s
+    boot.system_status = mavlink.MAV_STATE_ACTIVE
+    assert "from 59.5 s to 3.0 s" in watch.while_flying(boot, "HEARTBEAT", 61.0)
+    assert watch.time_lost(3.0) == pytest.approx(56.5)         # after it: as if the clock had run on
+    assert watch.time_lost(59.4) == 0.0                        # a late time from before it
+    code, reason = watch.while_stopping(1, "the link was lost")
+    assert code == EXIT_REBOOT and reason.endswith("first seen as: the link was lost")
+    assert watch.while_stopping(EXIT_REBOOT, "named") == (EXIT_REBOOT, "named")
 
 
 def test_a_state_read_after_its_batch_is_the_completed_pair_not_the_next_periods_half():

@@ -158,3 +158,13 @@ def test_a_navigation_reset_moves_the_estimate_from_its_instant_and_resets_add_u
     assert parse_vehicle_faults(faults.describe().split(",")) == faults
     with pytest.raises(VehicleFaultError, match="NORTH/EAST@TIME"):
         parse_vehicle_faults(["navigation-reset=1@5s"])
+
+
+@pytest.mark.parametrize("when,seconds", [("500ms", 0.5), ("90s", 90.0), ("1.5s", 1.5)])
+def test_a_time_reads_alike_in_the_link_and_the_vehicle_fault_options(when, seconds):
+    """Both grammars read their items through one parser (rov_mav.fault_items): the same '@TIME' is the same time."""
+    from sim_bridge.transport.faults import parse_faults
+
+    assert parse("reboot@" + when).reboots == (seconds,)
+    assert parse_faults(f"cut=1s@{when}").cut == (seconds, 1.0)
+    assert parse_faults(f"drop=PARAM_VALUE@{when}").drop == (("PARAM_VALUE", seconds),)

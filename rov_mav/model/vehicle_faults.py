@@ -31,8 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rov_mav.config import ConfigError, read_yaml
-from rov_mav.units import parse_duration
+from rov_mav.fault_items import at_time, option_file, parse_item, seconds, split_items
 
 THRUSTERS = 8
 THRUSTER_KINDS = ("dead", "stuck", "weak", "reversed")
@@ -167,15 +166,13 @@ def wrench_map(faults: VehicleFaults, matrix: np.ndarray, thrust_of_pwm) -> tupl
 
 
 def _time(item: str, text: str) -> float:
-    value = parse_duration(text)
-    if value is None:
-        raise VehicleFaultError(f"{item}: expected a time of 0 or more with its unit after @, e.g. 60s or 500ms")
-    return value
+    return seconds(text, VehicleFaultError,
+                   f"{item}: expected a time of 0 or more with its unit after @, e.g. 60s or 500ms")
 
 
 def _split_at(item: str, body: str, what: str) -> tuple[str, str]:
-    head, sep, when = body.rpartition("@")
-    if not sep:
+    head, when = at_time(body)
+    if when is None:
         raise VehicleFaultError(f"{item}: expected {what}@TIME, e.g. {what}@60s")
     return head, when
 
@@ -251,35 +248,30 @@ def parse_vehicle_faults(items: list[str]) -> VehicleFaults:
     navigation: list[tuple[float, float]] = []
     resets: list[tuple[float, float, float]] = []
     single: dict[str, object] = {}
-    for raw in items:
-        item = raw.strip()
-        key, sep, value = item.partition("=")
-        if not sep:
-            key, _, value = item.partition("@")
-            value = "@" + value if "@" in item else ""
-        key = key.strip().lower()
+    for one in map(parse_item, items):
+        text, key, value, sep = one.text, one.key, one.value, one.assigned
         if key not in KEYS:
-            raise VehicleFaultError(f"unknown vehicle fault '{item}': expected some of {', '.join(KEYS)} "
+            raise VehicleFaultError(f"unknown vehicle fault '{text}': expected some of {', '.join(KEYS)} "
                                     f"(e.g. {EXAMPLE})")
         if key == "thruster":
-            thrusters.append(_thruster(item, value))
+            thrusters.append(_thruster(text, value))
             continue
         if key == "navigation-reset":
-            resets.append(_reset(item, value))
+            resets.append(_reset(text, value))
             continue
         if key in single:
             raise VehicleFaultError(f"{key} is given twice")
         if key == "battery":
-            single[key] = _battery(item, value)
+            single[key] = _battery(text, value)
             continue
         if sep or not value.startswith("@"):
-            raise VehicleFaultError(f"{item}: expected {key}@TIME, e.g. {key}@60s")
+            raise VehicleFaultError(f"{text}: expected {key}@TIME, e.g. {key}@60s")
         if key == "reboot":
-            reboots.append(_time(item, value[1:]))
+            reboots.append(_time(text, value[1:]))
         elif key == "navigation-lost":
-            navigation.append(_navigation(item, value[1:]))
+            navigation.append(_navigation(text, value[1:]))
         else:
-            single[key] = _time(item, value[1:])
+            single[key] = _time(text, value[1:])
     return VehicleFaults(thrusters=tuple(thrusters), reboots=tuple(sorted(reboots)), leak=single.get("leak"),
                          battery=single.get("battery"), navigation_lost=tuple(sorted(navigation)),
                          navigation_resets=tuple(sorted(resets)),
@@ -289,22 +281,17 @@ def parse_vehicle_faults(items: list[str]) -> VehicleFaults:
 def items_of(value: object, where: str) -> list[str]:
     """A `vehicle_faults` value from YAML (one text of comma-separated items, or a list of items) as items."""
     if isinstance(value, str):
-        return [part for part in value.split(",") if part.strip()]
+        return split_items(value)
     if isinstance(value, list) and all(isinstance(v, str) for v in value):
-        return [part for v in value for part in v.split(",") if part.strip()]
+        return [part for v in value for part in split_items(v)]
     raise VehicleFaultError(f"{where}: vehicle_faults: expected a text like '{EXAMPLE}' or a list of such items")
 
 
 def load_vehicle_faults(arg: str) -> VehicleFaults:
     """The option's value: inline 'ITEM,ITEM,...', or a YAML file holding `vehicle_faults:` (text or list)."""
-    path = Path(arg)
-    if not path.exists() and ("@" in arg or "=" in arg):
-        return parse_vehicle_faults(arg.split(","))
-    try:
-        data = read_yaml(path)
-    except ConfigError as exc:
-        hint = "" if path.exists() else f" (nor ITEM,ITEM,..., e.g. {EXAMPLE})"
-        raise VehicleFaultError(f"{exc}{hint}") from None
+    if not Path(arg).exists() and ("@" in arg or "=" in arg):
+        return parse_vehicle_faults(split_items(arg))
+    data, path = option_file(arg, VehicleFaultError, f"ITEM,ITEM,..., e.g. {EXAMPLE}")
     if "vehicle_faults" not in data:
         raise VehicleFaultError(f"{path}: vehicle_faults: missing (e.g. vehicle_faults: \"{EXAMPLE}\")")
     try:

@@ -23,8 +23,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from rov_mav.config import ConfigError, read_yaml
-from rov_mav.units import parse_duration
+from rov_mav.fault_items import at_time, option_file, parse_item, seconds, split_items
 
 REORDER_HOLD = 0.05            # vehicle s a held-back message waits for a successor to overtake it
 PROBABILITIES = ("loss", "dup", "reorder")
@@ -77,15 +76,12 @@ def _probability(key: str, text: str) -> float:
 
 
 def _duration(key: str, text: str) -> float:
-    value = parse_duration(text)
-    if value is None:
-        raise FaultError(f"{key}={text}: expected a time of 0 or more with its unit, e.g. 50ms or 2s")
-    return value
+    return seconds(text, FaultError, f"{key}={text}: expected a time of 0 or more with its unit, e.g. 50ms or 2s")
 
 
 def _at(key: str, text: str, what: str) -> tuple[str, str]:
-    head, sep, start = text.partition("@")
-    if not sep or not head.strip():
+    head, start = at_time(text)
+    if start is None or not head.strip():
         raise FaultError(f"{key}={text}: expected {what}@START, e.g. {key}=" + ("30s@20s" if key == "cut" else
                                                                              "PARAM_VALUE@40s"))
     return head.strip(), start
@@ -151,11 +147,10 @@ def from_pairs(pairs: list[tuple[str, str]]) -> FaultSpec:
 def parse_faults(text: str) -> FaultSpec:
     """'loss=0.2,delay=50ms,...' -> FaultSpec; FaultError (one line) if malformed."""
     pairs = []
-    for item in text.split(","):
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise FaultError(f"'{item.strip()}': expected KEY=VALUE (e.g. {EXAMPLE})")
-        pairs.append((key, value))
+    for one in map(parse_item, split_items(text) or [text]):
+        if not one.assigned:
+            raise FaultError(f"'{one.text}': expected KEY=VALUE (e.g. {EXAMPLE})")
+        pairs.append((one.key, one.value))
     return from_pairs(pairs)
 
 
@@ -163,16 +158,11 @@ def load_faults(arg: str) -> FaultSpec:
     """The option's value: inline 'KEY=VALUE,...', or a YAML file of the same keys (drop may be a list)."""
     if "=" in arg:
         return parse_faults(arg)
-    path = Path(arg)
-    try:
-        data = read_yaml(path)
-    except ConfigError as exc:
-        hint = "" if path.exists() else f" (nor KEY=VALUE,..., e.g. {EXAMPLE})"
-        raise FaultError(f"{exc}{hint}") from None
+    data, path = option_file(arg, FaultError, f"KEY=VALUE,..., e.g. {EXAMPLE}")
     pairs = []
     for key, value in data.items():
-        for item in value if isinstance(value, list) and key == "drop" else [value]:
-            pairs.append((str(key), str(item)))
+        for one in value if isinstance(value, list) and key == "drop" else [value]:
+            pairs.append((str(key), str(one)))
     try:
         return from_pairs(pairs)
     except FaultError as exc:

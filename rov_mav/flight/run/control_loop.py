@@ -25,7 +25,7 @@ from rov_mav.flight.run.run_options import MODEL, Abort, HandOver, LinkLost, Veh
 from rov_mav.flight.record.runlog import mission_start_text
 from rov_mav.flight.run.thruster_watch import ThrusterWatch
 from rov_mav.flight.record.tick import TickRecord
-from rov_mav.flight.session.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, failsafe_text, position_lost, rebooted
+from rov_mav.flight.session.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, RebootWatch, failsafe_text, position_lost
 from rov_mav.flight.state.vehicle_state import State
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
@@ -39,7 +39,6 @@ STARVED_WINDOW = 1.0             # wall s: a run stalled for more than STARVED_S
 STARVED_SHARE = 0.5
 POSITION_LOST_FOR = 1.0          # vehicle s of EKF_STATUS_REPORTs without a position that stop a run (not a flicker)
 TRUTH_AGE = 0.5                  # vehicle s: a true position (SIM_STATE) this near the state's time is its truth
-REBOOTED = 0.5                   # vehicle s: a time this much earlier than the one a reboot went back from is after it
 COMMAND_RATE = 50.0              # vehicle Hz: with the prediction, commands go out at least this often whatever the
                                  # telemetry's rate, each on the last state carried forward (the law at its own rate)
 DISARM_WORDS = 5.0               # vehicle s: its texts this recent are quoted when the vehicle disarms under the run
@@ -80,7 +79,7 @@ class FlightLoop:
         self._stalled: deque[tuple[float, float]] = deque()   # (wall s it ended, wall s it lasted), recent stalls
         self._resumed: float | None = None      # vehicle s the loop resumed after its last stall
         self._held_tau = np.zeros(6)             # the wrench of the last command sent
-        self._reboots = len(io.session.clock.reboots)   # the vehicle's reboots seen before this run flew
+        self.reboots = RebootWatch(io.session.clock)
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self._position_lost_at: float | None = None   # vehicle s since when it has shown none
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3)
@@ -157,9 +156,7 @@ class FlightLoop:
         if self.t_start is None:
             return 0.0
         lead = self.lead_in.duration if self.lead_in is not None else 0.0
-        lost = sum(before - after for before, after in self.io.session.clock.reboots[self._reboots:]
-                   if t < before - REBOOTED)      # a time from after that reboot (the vehicle's clock started again)
-        return t + lost - self.t_start - lead
+        return t + self.reboots.time_lost(t) - self.t_start - lead
 
     def _notice_stall(self, last: float) -> float:
         """A turn of the loop much later than the last one: this process stalled (a busy computer, SIGSTOP), the
@@ -245,11 +242,8 @@ class FlightLoop:
     def _watch_vehicle(self, msg, kind: str, now: float) -> None:
         """The vehicle's own trouble: a reboot (its clock went back, or it reports booting), a failsafe it announces,
         its estimator without a position."""
-        reboots = self.io.session.clock.reboots
-        if len(reboots) > self._reboots or (kind == "HEARTBEAT" and msg.system_status == mavlink.MAV_STATE_BOOT):
-            before, after = reboots[-1] if len(reboots) > self._reboots else (now, 0.0)
-            raise Abort(f"{rebooted(before, after)}: it is disarmed, and its outputs are as stored in its parameters",
-                        EXIT_REBOOT)
+        if (reboot := self.reboots.while_flying(msg, kind, now)) is not None:
+            raise Abort(reboot, EXIT_REBOOT)
         if kind == "STATUSTEXT" and (fault := failsafe_text(msg.text)) is not None and fault.stop:
             raise VehicleFailsafe(f"the vehicle's failsafe: {fault.name} (\"{msg.text}\")", now, EXIT_FAILSAFE)
         if kind == "EKF_STATUS_REPORT":

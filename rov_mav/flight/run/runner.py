@@ -33,7 +33,6 @@ from rov_mav.flight.run.run_io import RunIO
 from rov_mav.flight.run.run_options import MOTOR_TEST, Abort, HandOver, RunOptions, RunResult
 from rov_mav.flight.run.safe_stop import SafeStop
 from rov_mav.flight.session.vehicle_changes import VehicleChanges
-from rov_mav.flight.session.vehicle_events import EXIT_REBOOT, rebooted
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
 from rov_mav.mission.missions import Mission
@@ -100,7 +99,6 @@ class Runner:
         previous = {s: signal.signal(s, self._on_signal) for s in HANDLED_SIGNALS}
         self.session.interrupt = self.io.interrupt
         completed, code, reason, handover = False, 0, "mission complete", None
-        reboots = len(self.session.clock.reboots)
         try:
             self.claim.claim()
             if not self.options.dry_run:
@@ -124,9 +122,9 @@ class Runner:
             self.round_trip_ms = trip.seconds * 1e3 if trip.samples else float("nan")   # as flown, before the stop
             stop = SafeStop(self.io, self.output, handover, self.loop.last_command)
             report = stop.stop(reason, self._notes())
-            if len(self.session.clock.reboots) > reboots and code != EXIT_REBOOT:   # seen only while stopping
-                before, after = self.session.clock.reboots[-1]
-                code, reason = EXIT_REBOOT, f"{rebooted(before, after)}, first seen as: {reason}"
+            named = self.loop.reboots.while_stopping(code, reason)
+            if named != (code, reason):                  # a reboot first seen while stopping
+                code, reason = named
                 self.io.say(reason, "warning")
             if stop.unconfirmed and code == 0:     # complete, but the vehicle may not be left as it should
                 code = 1
