@@ -2,13 +2,15 @@
 
 A test that starts a process (any subprocess: a runner, a bridge, MAVProxy, a browser; a multiprocessing worker) or
 the bridge in-process (a real-time loop on real sockets) is marked `process`; `make test-fast` runs the others. The
-marks are held to what the tests do: an unmarked test that starts either fails, saying so.
+marks are held to what the tests do: an unmarked test that starts either fails, saying so. A session that may run
+`process` tests first compiles every kernel once (`compile_kernels`).
 """
 
 from __future__ import annotations
 
 import multiprocessing.process
 import subprocess
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -31,6 +33,39 @@ class StartsAProcess(RuntimeError):
 def pytest_configure(config):
     config.addinivalue_line("markers", f"{PROCESS}: starts a process or the bridge (real sockets, wall-clock pacing); "
                                        "`make test-fast` leaves these out")
+    if not hasattr(config, "workerinput") and not config.option.collectonly \
+            and "not process" not in (config.option.markexpr or ""):
+        compile_kernels()
+
+
+# Compiles every compiled kernel into Numba's on-disk cache, in two processes side by side: the run's (the laws, the
+# prediction, the run's own estimator: `flight.run.runner.warm_up`) and the offline closed loop's (a second of
+# `rov-mav simulate`). Cached, each takes a second or two.
+KERNEL_WARM_UPS = (
+    [sys.executable, "-c", "from rov_mav.control.controller import Controller, load_settings\n"
+     "from rov_mav.flight.thrusters.actuation import Actuation\n"
+     "from rov_mav.flight.run.runner import warm_up\n"
+     "from rov_mav.mission.missions import load_mission\n"
+     "from rov_mav.model.vehicle import load_vehicle\n"
+     "from rov_mav.shipped import resolve\n"
+     "v = load_vehicle()\n"
+     "warm_up(load_mission(resolve('mission', 'square')), Controller(v, load_settings('fuzzy', None)), "
+     "Actuation(v, 40.0), 0.02, 0.2, own_estimate=True)\n"],
+    [str(Path(sys.executable).with_name("rov-mav")), "simulate", str(MISSIONS / "line.yaml"), "--duration", "1",
+     "--rerun", "off"],
+)
+
+
+def compile_kernels() -> None:
+    """Once per session, before any test (and before pytest-xdist's workers start): on a fresh checkout the kernels'
+    first compilation takes about a minute of CPU, and without this every worker and every runner process a test
+    starts would compile them at once, each a run taking the vehicle with its thrusters held meanwhile."""
+    procs = [subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+             for argv in KERNEL_WARM_UPS]
+    for argv, proc in zip(KERNEL_WARM_UPS, procs):
+        _, err = proc.communicate(timeout=600)
+        if proc.returncode != 0:
+            raise pytest.UsageError(f"compiling the kernels failed ({' '.join(argv[:3])}...): {err.strip()}")
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -638,3 +638,16 @@ def test_invalid_motor_pwm_range_falls_back_to_rc3_and_outputs_fit_uint16():
     sub.update(0.0)
     out = sub.servo_outputs()
     assert out.min() >= 0 and out.max() <= 65535 and out[8] == 65534
+
+
+def test_the_packs_voltage_follows_its_discharge_table_and_falls_with_current():
+    """The open-circuit voltage is the 4S table's, linear between its points (the same as numpy's interp), held at
+    its ends; the terminal voltage loses INTERNAL_RESISTANCE x the current drawn."""
+    from sim_bridge.hardware.battery import _OCV, _SOC, INTERNAL_RESISTANCE, _open_circuit
+
+    for soc in np.r_[np.linspace(-0.1, 1.1, 241), _SOC]:
+        assert _open_circuit(soc) == pytest.approx(np.interp(soc, _SOC, _OCV), abs=1e-12)
+    pack = Battery()
+    pack.step(20.0, 360.0)                         # 20 A (plus the electronics' 0.5 A) for 6 minutes
+    assert pack.remaining == pytest.approx(1.0 - 20.5 * 0.1 / 18.0)
+    assert pack.voltage == pytest.approx(np.interp(pack.remaining, _SOC, _OCV) - INTERNAL_RESISTANCE * 20.5)

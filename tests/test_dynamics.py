@@ -23,6 +23,13 @@ def test_rotation_matches_scipy_zyx(rng):
     np.testing.assert_allclose(dynamics.rotation(eta), expected, atol=1e-12)
 
 
+def test_one_attitude_multiplied_out_is_the_batched_product(rng):
+    """rotation() of one pose (its closed form, attitude_rotation) equals the same pose's row of a batch."""
+    eta = rng.uniform(-np.pi, np.pi, (200, 6))
+    np.testing.assert_allclose(np.array([dynamics.rotation(e) for e in eta]), dynamics.rotation(eta), atol=1e-14)
+    np.testing.assert_allclose(dynamics.attitude_rotation(*eta[0, 3:]), dynamics.rotation(eta[:1])[0], atol=1e-14)
+
+
 def test_printed_eq_2_3_is_not_a_rotation():
     """ERRATA 1: the printed J_t (rows 2 and 3 misprinted) is not orthonormal; R is."""
     phi, th, psi = 0.3, -0.4, 1.1

@@ -12,7 +12,8 @@ import pytest
 from rov_mav.flight.state.estimate_jumps import CATCH_ACCEL, CATCH_UP, EstimateJumps, catch_up_time
 from rov_mav.model.navigation import PRESETS, Ugps
 from sim_bridge.navigation.estimator import Estimator
-from sim_bridge.navigation.sensors import ImuSample, Sensors, UgpsFix, rot
+from rov_mav.model.dynamics import attitude_rotation
+from sim_bridge.navigation.sensors import ImuSample, Sensors, UgpsFix
 
 
 def _fly(positions, velocities, dt=0.02):
@@ -54,7 +55,7 @@ def _vehicle_estimate(nav, seconds: float, feed) -> tuple[np.ndarray, np.ndarray
         t = k * 0.02
         feed(k, t, est)
         eta, nu = est.output
-        rows.append((t, eta[:3].copy(), rot(*eta[3:6]) @ nu[:3]))
+        rows.append((t, eta[:3].copy(), attitude_rotation(*eta[3:6]) @ nu[:3]))
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
 
 

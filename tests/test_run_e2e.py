@@ -89,11 +89,11 @@ def test_square_against_a_bridge_process(tmp_path):
 
 
 def test_square_on_the_built_in_vehicle(tmp_path):
-    """As `make run` flies it, recording for Rerun: everything slow to start (Rerun, the kernels' first calls) comes
-    before the built-in vehicle's clock starts, or at 10x the idle vehicle sinks past max_depth before the run takes
-    it."""
+    """As `make run` flies it (the square's segments, speed, turns, depth and disturbance; its sides SMALL_SCALE as
+    long), recording for Rerun: everything slow to start (Rerun, the kernels' first calls) comes before the built-in
+    vehicle's clock starts, or at 10x the idle vehicle sinks past max_depth before the run takes it."""
     metrics_path, recording = tmp_path / "metrics.json", tmp_path / "run.rrd"
-    with RunnerProcess(SQUARE, "--speedup", str(SQUARE_SPEEDUP), "--metrics", str(metrics_path),
+    with RunnerProcess(str(small_square(tmp_path)), "--speedup", str(SQUARE_SPEEDUP), "--metrics", str(metrics_path),
                        "--rerun", f"save:{recording}") as run:
         assert run.wait() == 0, run.output
     assert recording.stat().st_size > 0

@@ -6,6 +6,8 @@ kernel to it. Shapes: eta, nu (..., 6); matrices (..., 6, 6).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rov_mav.model.vehicle import Vehicle
@@ -20,8 +22,11 @@ def skew(a: np.ndarray) -> np.ndarray:
 
 
 def rotation(eta: np.ndarray) -> np.ndarray:
-    """R(Theta) = Rz(psi) Ry(theta) Rx(phi), body to NED (ERRATA 1); (..., 6) -> (..., 3, 3)."""
+    """R(Theta) = Rz(psi) Ry(theta) Rx(phi), body to NED (ERRATA 1); (..., 6) -> (..., 3, 3). One pose (6,) is
+    multiplied out in closed form (`attitude_rotation`): the runner and the built-in vehicle ask for one every tick."""
     eta = np.asarray(eta, dtype=float)
+    if eta.ndim == 1:
+        return attitude_rotation(float(eta[3]), float(eta[4]), float(eta[5]))
     phi, theta, psi = eta[..., 3], eta[..., 4], eta[..., 5]
     one, zero = np.ones_like(phi), np.zeros_like(phi)
     rx = np.stack([np.stack([one, zero, zero], -1),
@@ -34,6 +39,15 @@ def rotation(eta: np.ndarray) -> np.ndarray:
                    np.stack([np.sin(psi), np.cos(psi), zero], -1),
                    np.stack([zero, zero, one], -1)], -2)
     return rz @ ry @ rx
+
+
+def attitude_rotation(phi: float, theta: float, psi: float) -> np.ndarray:
+    """Rz(psi) Ry(theta) Rx(phi) for one attitude, multiplied out."""
+    cf, sf, ct, st, cp, sp = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta), math.cos(psi), \
+        math.sin(psi)
+    return np.array([[cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
+                     [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
+                     [-st, ct * sf, ct * cf]])
 
 
 def euler_rate_matrix(eta: np.ndarray) -> np.ndarray:

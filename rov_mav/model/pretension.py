@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rov_mav.model.kernel import compiled
+
 TOLERANCE = 1e-9
 
 
@@ -45,21 +47,38 @@ def sparse_null_vectors(matrix: np.ndarray) -> list[np.ndarray]:
     return chosen
 
 
+@compiled
 def _shift(f: np.ndarray, n: np.ndarray, floor: np.ndarray, previous: float) -> float:
     """The smallest alpha on the side of `previous` (0 counts on both) with |f_i + alpha n_i| >= floor_i wherever
-    n_i != 0; if that side has none, the one nearest `previous`."""
-    support = np.flatnonzero(n)
-    # |f + a n| < floor excludes a from an open interval per thruster
-    ends = np.sort(np.stack([(-floor[support] - f[support]) / n[support],
-                             (floor[support] - f[support]) / n[support]]), axis=0)
-    candidates = np.concatenate([[0.0, previous], ends.ravel()])
-
-    clear = np.abs(f[support] + candidates[:, None] * n[support]) >= floor[support] - 1e-9
-    feasible = candidates[clear.all(axis=1)].tolist()
-    same_side = [a for a in feasible if a * previous >= 0.0]
-    if same_side:
-        return min(same_side, key=abs)
-    return min(feasible, key=lambda a: abs(a - previous))
+    n_i != 0; if that side has none, the one nearest `previous`. The candidates, in order (the first wins a tie):
+    0, `previous`, then the ends of the open interval |f_i + alpha n_i| < floor_i excludes for each thruster (the
+    lower ends, then the upper ones)."""
+    m = f.shape[0]
+    same, same_size, found_same = 0.0, np.inf, False
+    nearest, nearest_gap = 0.0, np.inf
+    for c in range(2 + 2 * m):
+        if c == 0:
+            a = 0.0
+        elif c == 1:
+            a = previous
+        else:
+            i = (c - 2) % m
+            if n[i] == 0.0:
+                continue
+            e1, e2 = (-floor[i] - f[i]) / n[i], (floor[i] - f[i]) / n[i]
+            a = max(e1, e2) if c - 2 >= m else min(e1, e2)
+        clear = True
+        for j in range(m):
+            if n[j] != 0.0 and abs(f[j] + a * n[j]) < floor[j] - TOLERANCE:
+                clear = False
+                break
+        if not clear:
+            continue
+        if a * previous >= 0.0 and abs(a) < same_size:
+            same, same_size, found_same = a, abs(a), True
+        if abs(a - previous) < nearest_gap:
+            nearest, nearest_gap = a, abs(a - previous)
+    return same if found_same else nearest
 
 
 class Pretension:

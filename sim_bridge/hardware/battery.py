@@ -6,11 +6,11 @@ pack (a `battery=RATE@T` vehicle fault) sags `sag` volts more at its terminals (
 
 from __future__ import annotations
 
-import numpy as np
+from bisect import bisect_right
 
 # Open-circuit voltage of a 4S Li-ion pack (V) against state of charge (0..1).
-_SOC = np.array([0.0, 0.05, 0.1, 0.2, 0.5, 0.8, 0.9, 1.0])
-_OCV = np.array([12.0, 13.2, 13.8, 14.4, 15.0, 15.8, 16.2, 16.8])
+_SOC = (0.0, 0.05, 0.1, 0.2, 0.5, 0.8, 0.9, 1.0)
+_OCV = (12.0, 13.2, 13.8, 14.4, 15.0, 15.8, 16.2, 16.8)
 INTERNAL_RESISTANCE = 0.03      # ohm, whole pack
 HOTEL_CURRENT = 0.5             # A drawn by the electronics (flight controller, companion, camera)
 
@@ -44,5 +44,13 @@ class Battery:
             self.voltage = self._terminal()
 
     def _terminal(self) -> float:
-        ocv = float(np.interp(self.remaining, _SOC, _OCV)) * self.full_voltage / _OCV[-1]
+        ocv = _open_circuit(self.remaining) * self.full_voltage / _OCV[-1]
         return max(ocv - INTERNAL_RESISTANCE * self.current - self.sag, 0.0)
+
+
+def _open_circuit(soc: float) -> float:
+    """The pack's open-circuit voltage at state of charge `soc` (0..1), linear between the table's points (a scalar
+    lookup every physics step: no array call)."""
+    k = min(max(bisect_right(_SOC, soc), 1), len(_SOC) - 1)
+    s0, s1, v0, v1 = _SOC[k - 1], _SOC[k], _OCV[k - 1], _OCV[k]
+    return v0 + (v1 - v0) * (min(max(soc, s0), s1) - s0) / (s1 - s0)

@@ -31,8 +31,9 @@ from collections import deque
 
 import numpy as np
 
+from rov_mav.model.dynamics import attitude_rotation
 from rov_mav.model.navigation import Navigation
-from sim_bridge.navigation.sensors import Bar30Sample, CompassSample, DvlReport, ImuSample, UgpsFix, rot
+from sim_bridge.navigation.sensors import Bar30Sample, CompassSample, DvlReport, ImuSample, UgpsFix
 
 POS_GATE, VEL_GATE, HGT_GATE, MAG_GATE = 5.0, 5.0, 5.0, 3.0
 RETRY_NO_VEL, RETRY_WITH_VEL = 7.0, 10.0        # s without a fix passing before a rejected one resets the position
@@ -53,7 +54,7 @@ class Estimator:
         self.nav = nav
         delays = [s.ekf_delay for s in (nav.dvl, nav.ugps) if s is not None]
         self.horizon = max(delays, default=0.0)
-        r = rot(*eta[3:6])
+        r = attitude_rotation(*eta[3:6])
         self.x = np.concatenate((np.asarray(eta[:3], float), r @ np.asarray(nu[:3], float)))
         self.P = np.diag([INITIAL_POS_STD ** 2] * 3 + [INITIAL_VEL_STD ** 2] * 3)
         self.t_h = t0                                   # the horizon's time
@@ -100,7 +101,7 @@ class Estimator:
     def _imu(self, s: ImuSample) -> None:
         self.roll, self.pitch = s.roll, s.pitch
         self._heading_predict(s)
-        r = rot(self.roll, self.pitch, self.psi)
+        r = attitude_rotation(self.roll, self.pitch, self.psi)
         dv = r @ s.dv_body
         self._buffer.append((s.t, s.dt, dv, self.roll, self.pitch, self.psi))
         p, v = self._now
@@ -181,7 +182,7 @@ class Estimator:
                 self._update(kind, np.array([2]), np.array([item.depth]), self.nav.bar30.noise ** 2, HGT_GATE,
                              item)
             elif kind == "vel":
-                v = rot(*self._attitude_h) @ item.velocity
+                v = attitude_rotation(*self._attitude_h) @ item.velocity
                 self._update(kind, np.array([3, 4, 5]), v, self.nav.dvl.noise ** 2, VEL_GATE, item)
             else:
                 std = max(item.std, self.nav.ugps.noise_floor)

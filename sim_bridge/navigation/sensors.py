@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rov_mav.model.dynamics import attitude_rotation
 from rov_mav.model.navigation import Navigation
 
 TILT_TAU = 30.0                   # s: the AHRS tilt error's correlation time (chosen)
@@ -69,15 +70,6 @@ class UgpsFix:
     valid: bool
 
 
-def rot(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Body to NED, ZYX Euler angles (as `rov_mav.model.dynamics.rotation`, for one attitude, cheaply)."""
-    cf, sf, ct, st, cp, sp = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta), math.cos(psi), \
-        math.sin(psi)
-    return np.array([[cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
-                     [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
-                     [-st, ct * sf, ct * cf]])
-
-
 class _Every:
     """A periodic sensor on the physics clock: due at 0, 1/rate, 2/rate, ... (rounded to steps by the caller)."""
 
@@ -105,7 +97,7 @@ class Sensors:
         self._imu, self._compass, self._bar30 = _Every(nav.imu.rate), _Every(nav.compass.rate), _Every(nav.bar30.rate)
         self._dvl = _Every(nav.dvl.rate) if nav.dvl else None
         self._ugps = _Every(nav.ugps.rate) if nav.ugps else None
-        self._v_prev = rot(*eta[3:6]) @ nu[:3]
+        self._v_prev = attitude_rotation(*eta[3:6]) @ nu[:3]
         self._t_imu: float | None = None
         self._tilt = np.zeros(2)
         self._lock_lost_until = -math.inf
@@ -138,7 +130,7 @@ class Sensors:
 
     def _imu_sample(self, t: float, eta: np.ndarray, nu: np.ndarray) -> ImuSample:
         imu = self.nav.imu
-        r = rot(eta[3], eta[4], eta[5])
+        r = attitude_rotation(eta[3], eta[4], eta[5])
         v = r @ nu[:3]
         dt = t - self._t_imu if self._t_imu is not None else 1.0 / imu.rate
         dv_body = r.T @ (v - self._v_prev) + imu.accel_noise * dt * self._rng_imu.standard_normal(3)
