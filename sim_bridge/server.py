@@ -55,7 +55,7 @@ from sim_bridge.gcs.schedule import GROUP_OF, Scheduler
 from sim_bridge.navigation.sensors import Sensors
 from sim_bridge.navigation.source_messages import source_messages
 from sim_bridge.gcs.signing import VehicleSigning
-from sim_bridge.hardware.vehicle_faults import LiveFaults, resolve
+from sim_bridge.hardware.vehicle_faults import RebootSchedule, resolve
 
 MAX_IDLE = 0.05                                   # s: longest sleep between checks for a stop request
 SENSOR_PERIOD = 0.02                              # s: the failsafes' sensors are read at 50 Hz
@@ -86,7 +86,7 @@ class Bridge:
         self.vehicle_faults = resolve(config.vehicle_faults, config.environment)
         self.navigation = config.navigation or getattr(config.environment, "navigation", None) or \
             NAVIGATION_PRESETS["ideal"]
-        self.live = LiveFaults(self.vehicle_faults)
+        self.power_cuts = RebootSchedule(self.vehicle_faults)
         plant = Plant(self.vehicle, config.environment, eta0=np.array([0, 0, config.start_depth, 0, 0, 0.0]),
                       seed=config.seed)
         Plant(self.vehicle).step(np.zeros(6), config.step)   # load the compiled model now, not in a paced step
@@ -232,7 +232,7 @@ class Bridge:
         self.sub = ArduSub(self.params, origin=self.config.origin)
         self.sub.initialised = False
         plant = self.physics.plant
-        self.avionics = Avionics(self.live, self.physics.battery, self.t, self.navigation, (plant.eta, plant.nu))
+        self.avionics = Avionics(self.vehicle_faults, self.physics.battery, self.t, self.navigation, (plant.eta, plant.nu))
         stored = self.missions.items
         self.missions = MissionProtocol(lambda: self.config.origin)
         self.missions.items = stored
@@ -292,10 +292,10 @@ class Bridge:
             select.select(sockets, [], [], min(self.pacer.wait(self.t), MAX_IDLE))
 
     def _step(self) -> None:
-        if self.live.reboot_due(self.t):
+        if self.power_cuts.due(self.t):
             self._power_off()
         phase = self.boot.phase(self.steps)
-        self.physics.battery.set_sag(self.live.battery_sag(self.t))
+        self.physics.battery.set_sag(self.vehicle_faults.battery_sag(self.t))
         if phase == boot.RUNNING:
             uptime = self.uptime
             fresh = uptime >= self._next_sensors         # read at the fastest failsafe loop's rate (50 Hz)
@@ -335,7 +335,8 @@ class Bridge:
         plant, t = self.physics.plant, self.t
         if t + 1e-9 < self.sensors.next_event:
             return False
-        items = self.sensors.sample(t, plant.eta, plant.nu, self.live.navigation_ok(t), self.live.depth_sensor_ok(t))
+        faults = self.vehicle_faults
+        items = self.sensors.sample(t, plant.eta, plant.nu, faults.navigation_ok(t), faults.depth_sensor_ok(t))
         if not items:
             return False
         if phase != boot.OFF:

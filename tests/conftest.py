@@ -38,6 +38,12 @@ def pytest_configure(config):
         compile_kernels()
 
 
+def pytest_collection_modifyitems(config, items):
+    """The tests that start a process first, the rest after them in their order: on two workers the many short
+    tests then fill in behind the long end-to-end runs, instead of one long run ending the session alone."""
+    items.sort(key=lambda item: item.get_closest_marker(PROCESS) is None)
+
+
 # Compiles every compiled kernel into Numba's on-disk cache, in two processes side by side: the run's (the laws, the
 # prediction, the run's own estimator: `flight.run.runner.warm_up`) and the offline closed loop's (a second of
 # `rov-mav simulate`). Cached, each takes a second or two.

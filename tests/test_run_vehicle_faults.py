@@ -24,7 +24,8 @@ from run_helpers import (
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
-FAULT_AT = 110.0        # vehicle s after the bridge starts: the run is flying by then (it takes ~40 s to start)
+FAULT_AT = 60.0         # vehicle s after the bridge starts: the run is flying by then (its mission began 9 s after
+                        # the bridge's start, measured unloaded)
 LONG = 30.0             # m of the mission's leg: 150 s of mission at 0.2 m/s, flying through FAULT_AT
 
 
@@ -44,6 +45,9 @@ def _flies_on_after(tmp_path, fault: str, marker: str, speedup: float, *run_args
         gcs = checker(checker_port, speedup=speedup)
         try:
             line = run.wait_for(marker, timeout=120.0)
+            mission_t, vehicle_t = float(line.split("]")[0].strip("[ ")), re.search(r"vehicle t=([0-9.]+)", line)
+            assert vehicle_t is None or float(vehicle_t.group(1)) - mission_t < FAULT_AT - 10.0, \
+                f"the run began its mission less than 10 s before the fault: {line}"
             time.sleep(flown / speedup)
             assert run.proc.poll() is None, run.output          # still flying
             run.signal(15)

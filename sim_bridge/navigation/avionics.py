@@ -1,5 +1,5 @@
 """What the autopilot reads from its sensors during one boot, under the vehicle's faults
-(`sim_bridge.hardware.vehicle_faults`).
+(`rov_mav.model.vehicle_faults`).
 
 - The depth sensor (Bar30): found at boot only if it has not failed yet (`ap.depth_sensor_present`); once failed it
   reads its last value on (AP_Baro keeps the last pressure; SCALED_PRESSURE2 goes on showing it).
@@ -25,11 +25,11 @@ from __future__ import annotations
 import numpy as np
 
 from rov_mav.model.navigation import Navigation
+from rov_mav.model.vehicle_faults import VehicleFaults
 from sim_bridge.hardware.battery import Battery
 from sim_bridge.navigation.estimator import Estimator
 from sim_bridge.autopilot.failsafes import Readings
 from sim_bridge.navigation.aiding import Aiding
-from sim_bridge.hardware.vehicle_faults import LiveFaults
 
 
 AID_GAP = 1.0                   # s without a fused DVL velocity or fix before the source counts as lost (chosen)
@@ -40,32 +40,32 @@ class Avionics:
     """The sensors of one boot, started at vehicle time t (with `nav` other than ideal, an estimator initialised
     on `state`, the plant's (eta, nu) at boot)."""
 
-    def __init__(self, live: LiveFaults, battery: Battery, t: float, nav: Navigation | None = None,
+    def __init__(self, faults: VehicleFaults, battery: Battery, t: float, nav: Navigation | None = None,
                  state=None):
-        self.live = live
+        self.faults = faults
         self.battery = battery
-        self.depth_present = live.depth_sensor_ok(t)
+        self.depth_present = faults.depth_sensor_ok(t)
         self.nav = nav
         self.estimator = Estimator(nav, t, *state) if nav is not None and not nav.ideal else None
         has_source = self.estimator is None or nav.has_position_source
-        self.navigation = Aiding(live.navigation_ok(t) and has_source)
+        self.navigation = Aiding(faults.navigation_ok(t) and has_source)
         self.bar30: float | None = None           # m: the failed depth sensor's last reading (None: working)
         self._bar30_good: float | None = None
         self._consumed_at_boot = battery.consumed_ah
 
     def navigate(self, t: float, uptime: float, measured) -> tuple[np.ndarray, np.ndarray]:
         """The EKF's estimate at vehicle time t (uptime since boot) from the measured (eta, nu)."""
-        depth_ok = self.live.depth_sensor_ok(t)
+        depth_ok = self.faults.depth_sensor_ok(t)
         if depth_ok:
             self.bar30, self._bar30_good = None, float(measured[0][2])
         elif self.bar30 is None:
             self.bar30 = self._bar30_good if self._bar30_good is not None else float(measured[0][2])
-        source_ok = self.live.navigation_ok(t)
+        source_ok = self.faults.navigation_ok(t)
         if self.estimator is not None:
             measured = self.estimator.output
             source_ok = source_ok and self.nav.has_position_source and t - self.estimator.aided_at < AID_GAP
         eta, nu = self.navigation.update(uptime, source_ok, depth_ok, measured)
-        offset = self.live.navigation_offset(t)
+        offset = self.faults.navigation_offset(t)
         if offset.any():
             eta = eta.copy()
             eta[:3] += offset
@@ -103,7 +103,7 @@ class Avionics:
 
     def sensors(self, t: float, uptime: float) -> Readings:
         velocity, _, _, compass = self.variances(uptime)
-        return Readings(leak=self.live.leaking(t), voltage=self.battery.voltage,
+        return Readings(leak=self.faults.leaking(t), voltage=self.battery.voltage,
                        consumed_mah=self.consumed_ah() * 1000.0, velocity_variance=velocity,
-                       compass_variance=compass, depth_healthy=self.live.depth_sensor_ok(t),
+                       compass_variance=compass, depth_healthy=self.faults.depth_sensor_ok(t),
                        depth_present=self.depth_present)
