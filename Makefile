@@ -23,12 +23,12 @@ run: setup
 
 # The whole suite on two workers (pytest-xdist): every end-to-end test holds its checks with another test beside it.
 test: setup
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal
 
 # The tests that start no process and no bridge (tests/conftest.py's `process` marker): the physics, the math, the
 # readers; for the loop of a change. `make test` (what CI runs) is the whole suite.
 test-fast: setup
-	$(BIN)/python -m pytest -q -m "not process" -n 2
+	$(BIN)/python -m pytest -q -m "not process" -n 2 --dist loadgroup
 
 docs: setup
 	$(BIN)/sphinx-build -W --keep-going -n -q -b html docs docs/_build/html

@@ -41,6 +41,9 @@ from rov_mav.offline.identify.prediction_check import compare, impossible, split
 from sim_bridge.hardware.battery import Battery
 from sim_bridge.hardware.physics import Physics
 
+# One worker flies this module's in-process flights (module fixtures) for all its tests (`--dist loadgroup`).
+pytestmark = pytest.mark.xdist_group("identify-flights")
+
 IDENTIFY = MISSIONS / "identify.yaml"
 TOLERANCE = 0.05            # relative, clean logs
 NOISY_TOLERANCE = 0.12      # relative, a log with sensor noise (measured: roll added mass -10.3 %, the rest <= 8.4 %)
