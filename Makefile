@@ -21,9 +21,10 @@ run: setup
 	$(BIN)/rov-mav run missions/square.yaml --metrics out/square/metrics.json --log out/square/log \
 		--rerun $(RERUN) $(ARGS)
 
-# The whole suite on two workers (pytest-xdist): every end-to-end test holds its checks with another test beside it.
+# The whole suite on two workers (pytest-xdist), handed out two tests at a time in the collection's order (the process
+# tests first: tests/conftest.py): every end-to-end test holds its checks with another test beside it.
 test: setup
-	$(BIN)/python -m pytest -q -n 2 --dist worksteal
+	$(BIN)/python -m pytest -q -n 2 --maxschedchunk 2
 
 # The tests that start no process and no bridge (tests/conftest.py's `process` marker): the physics, the math, the
 # readers; for the loop of a change. `make test` (what CI runs) is the whole suite.

@@ -39,8 +39,9 @@ def pytest_configure(config):
 
 
 def pytest_collection_modifyitems(config, items):
-    """The tests that start a process first, the rest after them in their order: on two workers the many short
-    tests then fill in behind the long end-to-end runs, instead of one long run ending the session alone."""
+    """The tests that start a process first, the rest after them in their order: on two workers handed tests a
+    couple at a time in this order (`make test`'s --maxschedchunk 2), the many short tests fill in behind the long
+    end-to-end runs, instead of one worker left with runs queued ending the session alone."""
     items.sort(key=lambda item: item.get_closest_marker(PROCESS) is None)
 
 
