@@ -213,8 +213,9 @@ def test_pages_render_in_a_browser(page, served, browser, tmp_path):
 
 
 OTHER_PROGRAMS = {   # options the manual quotes from other programs' command lines
-    "--keep-going": "sphinx-build", "--dist": "pytest-xdist", "--logfile": "MAVProxy", "--nthreads": "dask worker",
-    "--nworkers": "dask worker", "--port": "dask scheduler", "--serve-grpc": "rerun",
+    "--keep-going": "sphinx-build", "--dist": "pytest-xdist", "--maxschedchunk": "pytest-xdist",
+    "--logfile": "MAVProxy", "--nthreads": "dask worker", "--nworkers": "dask worker", "--port": "dask scheduler",
+    "--serve-grpc": "rerun",
 }
 
 
