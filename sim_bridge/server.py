@@ -232,7 +232,8 @@ class Bridge:
         self.sub = ArduSub(self.params, origin=self.config.origin)
         self.sub.initialised = False
         plant = self.physics.plant
-        self.avionics = Avionics(self.vehicle_faults, self.physics.battery, self.t, self.navigation, (plant.eta, plant.nu))
+        self.avionics = Avionics(self.vehicle_faults, self.physics.battery, self.t, self.navigation,
+                                 (plant.eta, plant.nu))
         stored = self.missions.items
         self.missions = MissionProtocol(lambda: self.config.origin)
         self.missions.items = stored

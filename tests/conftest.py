@@ -45,19 +45,25 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: item.get_closest_marker(PROCESS) is None)
 
 
+# What a run compiles before it takes the vehicle (`flight.run.runner.warm_up`), as a fresh interpreter's program;
+# `own` says whether it flies on its own estimator (`--estimator model`). tests/test_warm_up.py holds it to that.
+RUN_WARM_UP = """
+from rov_mav.control.controller import Controller, load_settings
+from rov_mav.flight.thrusters.actuation import Actuation
+from rov_mav.flight.run.runner import warm_up
+from rov_mav.mission.missions import load_mission
+from rov_mav.model.vehicle import load_vehicle
+from rov_mav.shipped import resolve
+vehicle = load_vehicle()
+warm_up(load_mission(resolve("mission", "square")), Controller(vehicle, load_settings("fuzzy", None)),
+        Actuation(vehicle, 40.0), 0.02, 0.2, own_estimate={own})
+"""
+
 # Compiles every compiled kernel into Numba's on-disk cache, in two processes side by side: the run's (the laws, the
-# prediction, the run's own estimator: `flight.run.runner.warm_up`) and the offline closed loop's (a second of
-# `rov-mav simulate`). Cached, each takes a second or two.
+# prediction, the run's own estimator) and the offline closed loop's (a second of `rov-mav simulate`). Cached, each
+# takes a second or two.
 KERNEL_WARM_UPS = (
-    [sys.executable, "-c", "from rov_mav.control.controller import Controller, load_settings\n"
-     "from rov_mav.flight.thrusters.actuation import Actuation\n"
-     "from rov_mav.flight.run.runner import warm_up\n"
-     "from rov_mav.mission.missions import load_mission\n"
-     "from rov_mav.model.vehicle import load_vehicle\n"
-     "from rov_mav.shipped import resolve\n"
-     "v = load_vehicle()\n"
-     "warm_up(load_mission(resolve('mission', 'square')), Controller(v, load_settings('fuzzy', None)), "
-     "Actuation(v, 40.0), 0.02, 0.2, own_estimate=True)\n"],
+    [sys.executable, "-c", RUN_WARM_UP.format(own=True)],
     [str(Path(sys.executable).with_name("rov-mav")), "simulate", str(MISSIONS / "line.yaml"), "--duration", "1",
      "--rerun", "off"],
 )

@@ -8,21 +8,12 @@ import subprocess
 import sys
 
 import pytest
+from conftest import RUN_WARM_UP
 
 pytestmark = pytest.mark.process      # starts a process or the bridge (tests/conftest.py)
 
-PROBE = """
-from rov_mav.control.controller import Controller, load_settings
-from rov_mav.flight.thrusters.actuation import Actuation
-from rov_mav.flight.run.runner import warm_up
-from rov_mav.mission.missions import load_mission
+PROBE = RUN_WARM_UP + """
 from rov_mav.model import kernel
-from rov_mav.model.vehicle import load_vehicle
-from rov_mav.shipped import resolve
-vehicle = load_vehicle()
-warm_up(load_mission(resolve("mission", "square")), Controller(vehicle, load_settings("fuzzy", None)),
-Actuation(vehicle, 40.0), 0.02,
-        0.2, own_estimate={own})
 print(len(kernel.state_derivative.signatures), len(kernel.predict.signatures))
 """
 

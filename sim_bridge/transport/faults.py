@@ -19,7 +19,6 @@ import itertools
 import math
 import random
 from dataclasses import dataclass
-from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
