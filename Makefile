@@ -6,6 +6,9 @@ STAMP := $(VENV)/.installed-stamp
 # Rerun sink for `make run`: spawn a viewer when a display is present, else record a file.
 RERUN ?= $(if $(DISPLAY)$(WAYLAND_DISPLAY),spawn,save:out/square/run.rrd)
 ARGS ?=
+# Python may cache its compiled modules (some machines turn that off): every process a test starts, and every test run
+# after the first, then skips compiling rov_mav, sim_bridge and the rewritten tests again.
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: setup run test test-fast docs bench bench-tune bench-particles reproduce clean
 

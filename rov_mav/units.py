@@ -23,6 +23,8 @@ def north_east(lat: float, lon: float, origin: tuple[float, float, float]) -> tu
 
 def wrap_angle(angle):
     """Wrap radians to [-pi, pi); scalars stay floats, arrays stay arrays (the compiled kernel has its own)."""
+    if isinstance(angle, (float, int)):         # a scalar (numpy's float64 too), without numpy's call
+        return (float(angle) + math.pi) % (2 * math.pi) - math.pi
     wrapped = (np.asarray(angle, dtype=float) + np.pi) % (2 * np.pi) - np.pi
     return float(wrapped) if wrapped.ndim == 0 else wrapped
 

@@ -148,7 +148,7 @@ def stop_with(session: FakeSession, changes: VehicleChanges, path: str, handover
 def _quick(monkeypatch):
     """The stop's waits, shortened: the fake vehicle answers at once or never."""
     monkeypatch.setattr(safe_stop, "SAFE_STOP_CONFIRM", 0.02)
-    monkeypatch.setattr(safe_stop, "LOST_LINK_RETRY", 0.1)
+    monkeypatch.setattr(safe_stop, "LOST_LINK_RETRY", 0.03)
     monkeypatch.setattr(safe_stop, "REPORT_SLACK", 0.01)
     monkeypatch.setattr(safe_stop, "HANDOVER_CONFIRM", 0.02)
     monkeypatch.setattr(safe_stop, "NEUTRAL_HOLD", 0.01)

@@ -63,8 +63,8 @@ def _invert_branch(thrust: np.ndarray, branch_thrust: np.ndarray, branch_pwm: np
     branch_thrust: (L,) non-decreasing thrust magnitudes from 0 at the dead band's edge outward, strictly positive
     after index 0; branch_pwm: (L,) the matching PWMs. A thrust on a flat run maps to the run's PWM nearest neutral;
     a thrust beyond the largest maps to where the largest is first reached."""
-    x = np.clip(thrust, 0.0, branch_thrust[-1])
-    j = np.clip(np.searchsorted(branch_thrust, x, side="left"), 1, len(branch_thrust) - 1)
+    x = np.minimum(np.maximum(thrust, 0.0), branch_thrust[-1])        # (np.clip costs more than the work here)
+    j = np.minimum(np.maximum(np.searchsorted(branch_thrust, x, side="left"), 1), len(branch_thrust) - 1)
     t0, t1 = branch_thrust[j - 1], branch_thrust[j]   # t0 < x <= t1 for x > 0, so t1 > t0
     p0, p1 = branch_pwm[j - 1], branch_pwm[j]
     return p0 + (x - t0) / (t1 - t0) * (p1 - p0)

@@ -70,30 +70,53 @@ def _vehicle_log(path: Path, warnings: list[str]) -> Path | None:
 
 
 def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
-    """ticks.csv's columns, and where it stopped ("line N (byte B): why") if not at its end."""
-    header_columns: list[str] = []
+    """ticks.csv's columns, and where it stopped ("line N (byte B): why") if not at its end. A whole, well-formed
+    file is parsed at once by numpy; anything else row by row, to say where it stopped."""
+    with open(regular_file(path), "rb") as f:
+        first = f.readline()
+        body = f.read()
+    header_columns = first.decode("utf-8", errors="replace").strip().split(",")
+    if "t" not in header_columns:
+        return {}, "line 1 (byte 0): no 't' column: not a run's ticks file"
+    width = len(header_columns)
+    values = _whole(body, width)
+    stopped = None
+    if values is None:
+        values, stopped = _row_by_row(body, width, len(first))
+    return {name: values[:, i] for i, name in enumerate(header_columns)}, stopped
+
+
+def _whole(body: bytes, width: int) -> np.ndarray | None:
+    """(rows, width) of a body whose every row is whole and numeric, else None."""
+    if body and not body.endswith(b"\n"):
+        return None
+    try:
+        values = np.loadtxt(io.BytesIO(body), delimiter=",", comments=None, ndmin=2, dtype=float)
+    except ValueError:
+        return None
+    rows = body.count(b"\n")
+    if values.shape != (rows, width) and not (rows == 0 and values.size == 0):
+        return None                            # a blank line (numpy skips it) or a row of another width
+    return values.reshape(rows, width)
+
+
+def _row_by_row(body: bytes, width: int, offset: int) -> tuple[np.ndarray, str | None]:
+    """The rows up to the first that is cut short, of another width or not numeric, and where that one is."""
     chunks: list[np.ndarray] = []
     rows: list[list[float]] = []
     stopped = None
-    with open(regular_file(path), "rb") as f:
-        first = f.readline()
-        header_columns = first.decode("utf-8", errors="replace").strip().split(",")
-        if "t" not in header_columns:
-            return {}, "line 1 (byte 0): no 't' column: not a run's ticks file"
-        width, offset = len(header_columns), len(first)
-        for line, raw in enumerate(f, start=2):
-            why = _invalid(raw, width)
-            if why is not None:
-                stopped = f"line {line} (byte {offset}): {why}"
-                break
-            rows.append([float(v) for v in raw.split(b",")])
-            offset += len(raw)
-            if len(rows) == CHUNK:
-                chunks.append(np.array(rows))
-                rows = []
+    for line, raw in enumerate(io.BytesIO(body), start=2):
+        why = _invalid(raw, width)
+        if why is not None:
+            stopped = f"line {line} (byte {offset}): {why}"
+            break
+        rows.append([float(v) for v in raw.split(b",")])
+        offset += len(raw)
+        if len(rows) == CHUNK:
+            chunks.append(np.array(rows))
+            rows = []
     chunks.append(np.array(rows, dtype=float).reshape(len(rows), width))
-    values = np.concatenate(chunks)
-    return {name: values[:, i] for i, name in enumerate(header_columns)}, stopped
+    return np.concatenate(chunks), stopped
 
 
 def column_block(ticks: dict[str, np.ndarray], names) -> np.ndarray:

@@ -98,6 +98,8 @@ class ArduSub:
         self.texts: list[tuple[int, str]] = []
         self._routing_version = -1
         self._mix_key: tuple | None = None
+        self._directions: list[float] = []
+        self._directions_version = -1
         self.holds = Holds()
         self.guided = Guided(accel_targets=params.firmware == "4.7")
         self._state: tuple[np.ndarray, np.ndarray] | None = None   # the last estimate `update` was given
@@ -350,8 +352,11 @@ class ArduSub:
         return p["RC3_MIN"], p["RC3_MAX"]
 
     def _mix(self, axes) -> np.ndarray:
-        directions = [-1.0 if self.params[name] < 0 else 1.0 for name in _MOTOR_DIRECTION[:self.frame.motors]]
-        return mixer.mix(axes, directions, self.frame, self.params["MOT_FV_CPLNG_K"])
+        if self._directions_version != self.params.version:      # MOT_n_DIRECTION read again only when changed
+            self._directions = [-1.0 if self.params[name] < 0 else 1.0
+                                for name in _MOTOR_DIRECTION[:self.frame.motors]]
+            self._directions_version = self.params.version
+        return mixer.mix(axes, self._directions, self.frame, self.params["MOT_FV_CPLNG_K"])
 
     def servo_outputs(self) -> np.ndarray:
         """PWM (16,) of SERVO1..16, routed by SERVOn_FUNCTION (0 for unassigned outputs; all 0 with the safety on,
@@ -368,7 +373,8 @@ class ArduSub:
             return out
         out[self._motor] = self.motor_pwm()[self._motor_index]
         out[self._rcin] = self.rc.radio_in[self._rcin_index]
-        return np.clip(out, 0, UINT16_MAX, out=out)
+        np.maximum(out, 0, out=out)                 # (np.clip's per-call overhead is larger than the work here)
+        return np.minimum(out, UINT16_MAX, out=out)
 
     # -- status ----------------------------------------------------------------------------------------------
 

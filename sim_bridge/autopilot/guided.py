@@ -210,25 +210,27 @@ class Guided:
         return [min(max(a, -1.0), 1.0) for a in (roll, pitch, yaw, throttle, forward, lateral)]
 
     def _horizontal(self, p, eta, v_ned, dt) -> tuple[float, float]:
-        """AC_PosControl::update_xy_controller and Sub::translate_pos_control_rp, in cm."""
-        error = (self.position[:2] - eta[:2]) * 100.0
-        distance = float(np.hypot(*error))
-        speed = sqrt_controller(distance, p["PSC_POSXY_P"], p["WPNAV_ACCEL"], dt)
-        speed = min(speed, p["WPNAV_SPEED"])
-        correction = error / distance * speed if distance > 0 else np.zeros(2)
-        vel_target = correction + self.velocity[:2] * 100.0
-        vel_error = vel_target - v_ned[:2] * 100.0
-        accel = np.array([pid.update(e, dt, p["PSC_VELXY_P"], p["PSC_VELXY_I"], p["PSC_VELXY_D"],
-                                     p["PSC_VELXY_IMAX"], p["PSC_VELXY_FLTE"], p["PSC_VELXY_FLTD"])
-                          for pid, e in zip(self.vel_xy, vel_error)]) + self.acceleration[:2] * 100.0
+        """AC_PosControl::update_xy_controller and Sub::translate_pos_control_rp, in cm (floats: it runs every
+        loop)."""
+        error_n, error_e = (self.position[0] - eta[0]) * 100.0, (self.position[1] - eta[1]) * 100.0
+        distance = math.hypot(error_n, error_e)
+        speed = min(sqrt_controller(distance, p["PSC_POSXY_P"], p["WPNAV_ACCEL"], dt), p["WPNAV_SPEED"])
+        scale = speed / distance if distance > 0 else 0.0
+        gains = (dt, p["PSC_VELXY_P"], p["PSC_VELXY_I"], p["PSC_VELXY_D"], p["PSC_VELXY_IMAX"], p["PSC_VELXY_FLTE"],
+                 p["PSC_VELXY_FLTD"])
+        pid_n, pid_e = self.vel_xy
+        accel_n = pid_n.update(error_n * scale + (self.velocity[0] - v_ned[0]) * 100.0, *gains) \
+            + self.acceleration[0] * 100.0
+        accel_e = pid_e.update(error_e * scale + (self.velocity[1] - v_ned[1]) * 100.0, *gains) \
+            + self.acceleration[1] * 100.0
         angle_max = math.radians(p["ANGLE_MAX"] / 100.0)
         accel_max = GRAVITY_CMSS * math.tan(angle_max)
-        norm = float(np.hypot(*accel))
+        norm = math.hypot(accel_n, accel_e)
         if norm > accel_max:
-            accel *= accel_max / norm
+            accel_n, accel_e = accel_n * accel_max / norm, accel_e * accel_max / norm
         c, s = math.cos(eta[5]), math.sin(eta[5])
-        accel_forward = c * accel[0] + s * accel[1]
-        accel_right = -s * accel[0] + c * accel[1]
+        accel_forward = c * accel_n + s * accel_e
+        accel_right = -s * accel_n + c * accel_e
         pitch = math.atan(-accel_forward / GRAVITY_CMSS)
         roll = math.atan(accel_right * math.cos(pitch) / GRAVITY_CMSS)
         return (min(max(-pitch / angle_max, -1.0), 1.0), min(max(roll / angle_max, -1.0), 1.0))

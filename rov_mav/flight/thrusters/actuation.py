@@ -133,11 +133,12 @@ class Actuation:
         thrusts[self._active] = given[self._active] / self.gains[self._active]
         asked = thrusts + self.carry if self.diffuse else thrusts
         low, high = self.pwm_range
-        pwm = np.clip(np.round(thrusts_to_pwms(asked, self.voltage, self.t200)), low, high)
+        pwm = np.minimum(np.maximum(np.round(thrusts_to_pwms(asked, self.voltage, self.t200)), low), high)
         self.delivered = self.t200.thrust(pwm, self.voltage)     # what the PWMs sent ask of each thruster, N
         if self.diffuse:
             owed = asked - self.delivered
-            self.carry = np.where((pwm <= low) | (pwm >= high), 0.0, np.clip(owed, -MAX_CARRY, MAX_CARRY))
+            self.carry = np.where((pwm <= low) | (pwm >= high), 0.0, np.minimum(np.maximum(owed, -MAX_CARRY),
+                                                                                MAX_CARRY))
         return thrusts, NEUTRAL + self.directions * (pwm - NEUTRAL), info
 
     def reset(self) -> None:
