@@ -51,9 +51,11 @@ from sim_bridge.autopilot.params import BUILT_IN_FRAME, INT8, NO_FORWARD, Params
 from sim_bridge.gcs.routing import Router
 from sim_bridge.hardware.physics import Harness, Physics
 from sim_bridge.gcs.protocol import Protocol
-from sim_bridge.gcs.schedule import GROUP_OF, Scheduler
+from sim_bridge.gcs.schedule import GROUP_OF, STREAMS_4_5, Scheduler
 from sim_bridge.navigation.sensors import Sensors
 from sim_bridge.navigation.source_messages import source_messages
+from sim_bridge.navigation.attached import attached_sensors
+from sim_bridge.modes.terrain import DOWN as RANGEFINDER_DOWN, MAVLINK_TYPE as MAVLINK_RANGEFINDER
 from sim_bridge.gcs.signing import VehicleSigning
 from sim_bridge.hardware.vehicle_faults import RebootSchedule, resolve
 
@@ -71,6 +73,13 @@ class Bridge:
         frame = config.params.get("FRAME_CONFIG", BUILT_IN_FRAME)
         self.params = Params(config.firmware,
                              int(stored_value(frame, INT8)) if math.isfinite(frame) else BUILT_IN_FRAME)
+        self.navigation = config.navigation or getattr(config.environment, "navigation", None) or \
+            NAVIGATION_PRESETS["ideal"]
+        # the sensors beyond the navigation suite (an echo sounder): a vehicle carrying a down-looking one was set up
+        # for it as BlueOS's Ping service asks, RNGFND1_TYPE 10 (MAVLink), unless told otherwise
+        self.attached = attached_sensors(self.navigation, config.seed, config.environment)
+        if any(getattr(sensor, "orientation", None) == RANGEFINDER_DOWN for sensor in self.attached):
+            self.params.set("RNGFND1_TYPE", MAVLINK_RANGEFINDER)
         for name, value in {**config.params, "SIM_SPEEDUP": config.speedup}.items():
             if name not in self.params:
                 raise ValueError(f"unknown parameter {name}")
@@ -84,8 +93,6 @@ class Bridge:
             raise ValueError(f"parameter {self.params.names.sysid}: the vehicle's sysid must be 1 to 255")
         self.vehicle = load_flown_vehicle(config.vehicle_path)
         self.vehicle_faults = resolve(config.vehicle_faults, config.environment)
-        self.navigation = config.navigation or getattr(config.environment, "navigation", None) or \
-            NAVIGATION_PRESETS["ideal"]
         self.power_cuts = RebootSchedule(self.vehicle_faults)
         plant = Plant(self.vehicle, config.environment, eta0=np.array([0, 0, config.start_depth, 0, 0, 0.0]),
                       seed=config.seed)
@@ -216,7 +223,23 @@ class Bridge:
             battery_failsafed=sub.failsafes.battery_failsafed, depth_present=avionics.depth_present,
             depth_healthy=avionics.bar30 is None, bar30_depth=avionics.bar30,
             truth=(self.physics.plant.eta, self.physics.plant.nu), targets=sub.holds.targets() if sub.armed else
-            (math.nan,) * 4)
+            (math.nan,) * 4, truth_heights=self._true_heights(), rangefinder=sub.rangefinder.reading(),
+            rangefinder_log=sub.rangefinder.log_row(),
+            rangefinder_target=sub.surftrak.target if sub.surftrak.target is not None else -0.01)
+
+    @property
+    def _truth_on_link(self) -> bool:
+        """The truth (SIM_STATE, and the true heights) is sent with a navigation of sensors, a bottom or ice."""
+        environment = self.config.environment
+        return self.sensors is not None or getattr(environment, "seafloor", None) is not None or \
+            getattr(environment, "ice", None) is not None
+
+    def _true_heights(self) -> tuple[float | None, float | None]:
+        """m: the vehicle's origin above the bottom, below the ice, straight up and down (None: no such surface)."""
+        eta, environment = self.physics.plant.eta, self.config.environment
+        seafloor, ice = getattr(environment, "seafloor", None), getattr(environment, "ice", None)
+        return (seafloor.depth_at(eta[0], eta[1]) - eta[2] if seafloor is not None else None,
+                eta[2] - ice.depth_at(eta[0], eta[1]) if ice is not None else None)
 
     def _params_changed(self, t: float) -> None:
         for scheduler in self.schedulers:
@@ -252,7 +275,9 @@ class Bridge:
     def _start_streams(self) -> None:
         """The main loop's streams: every link's scheduler, from the stored rates."""
         names, uptime = tuple(telemetry.BUILDERS), self.uptime
-        groups = None if self.sensors is None else {**GROUP_OF, "SIM_STATE": "EXTRA1"}   # the truth, as SITL's
+        groups = {**GROUP_OF, **(STREAMS_4_5 if self.params.firmware == "4.5" else {})}
+        if self._truth_on_link:
+            groups["SIM_STATE"] = "EXTRA1"                 # the truth, as SITL's
         self.schedulers = [Scheduler(names, lambda g, ch=link.channel: self.params.stream_rate(ch, g), groups)
                            for link in self.links]
         for scheduler in self.schedulers:
@@ -312,6 +337,7 @@ class Bridge:
         previous, phase = phase, self.boot.phase(self.steps)
         if phase != boot.OFF and previous == boot.OFF:
             self._start_firmware()
+        self._sense_attached(phase)
         if self.sensors is None:
             self.measured = self.physics.plant.measured()
             if phase != boot.OFF:
@@ -349,6 +375,20 @@ class Bridge:
                 link.send_as(msg, source)
         return True
 
+    def _sense_attached(self, phase: int) -> None:
+        """The sensors beyond the navigation suite: their readings sent on every link from the companion computer,
+        which the router also hands the autopilot (not while it is off)."""
+        plant, t = self.physics.plant, self.t
+        for sensor in self.attached:
+            if t + 1e-9 < sensor.next_event:
+                continue
+            for reading in sensor.sample(t, plant.eta, plant.nu):
+                for msg, source in sensor.messages(reading, int(t * 1000)):
+                    for link in self.links:
+                        link.send_as(msg, source)
+                    if phase == boot.RUNNING:
+                        self.protocol.handle(msg, -1, None, self.uptime)
+
     def _send_due(self) -> None:
         """The main loop's output: texts, the streams due on each link, the mission protocol's requests."""
         uptime = self.uptime
@@ -366,6 +406,9 @@ class Bridge:
                 msg = telemetry.BUILDERS[name](snap)
                 if msg is not None:
                     link.send(msg)
+                if name == "SIM_STATE":
+                    for height in telemetry.sim_heights(snap):
+                        link.send(height)
             link.deliver()
         for channel, msg in self.missions.update(uptime):
             for link in self.links:

@@ -15,7 +15,7 @@ from rov_mav.model.thrusters import load_t200
 from rov_mav.model.vehicle import load_vehicle
 from sim_bridge.autopilot.ardusub import MODES, ArduSub
 from sim_bridge.hardware.battery import Battery
-from sim_bridge.autopilot.guided import FRAME_BODY_NED, FRAME_LOCAL_NED, sqrt_controller
+from sim_bridge.modes.guided import FRAME_BODY_NED, FRAME_LOCAL_NED, sqrt_controller
 from rov_mav.units import EARTH_RADIUS
 from sim_bridge.autopilot.params import Params
 from sim_bridge.hardware.physics import Physics

@@ -213,7 +213,7 @@ def test_none_sends_attitude_and_depth_but_never_a_local_position_nor_position_f
 def test_ideal_is_the_old_telemetry_exactly(tmp_path):
     old_types = {"HEARTBEAT", "ATTITUDE", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "SCALED_PRESSURE2", "VFR_HUD",
                  "SERVO_OUTPUT_RAW", "RC_CHANNELS", "SYS_STATUS", "BATTERY_STATUS", "EKF_STATUS_REPORT",
-                 "SYSTEM_TIME", "MISSION_CURRENT"}
+                 "SYSTEM_TIME", "MISSION_CURRENT", "NAMED_VALUE_FLOAT"}    # RFTarget, as ArduSub sends it
     (tmp_path / "env.yaml").write_text("environment:\n  noise: {position: 0.05, attitude: 0.01}\n")
     environment = load_environment(tmp_path / "env.yaml")
     a, link_a = stepped(None, 5.0, environment=environment, seed=3)

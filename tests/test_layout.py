@@ -42,6 +42,9 @@ def test_each_package_indexes_what_it_holds(package):
 
 
 def test_the_layout_page_names_every_module_and_none_that_is_gone():
+    listed = re.findall(r"^((?:rov_mav|sim_bridge)/[\w/]*\w\.py) ", LAYOUT.read_text(), flags=re.M)
+    twice = sorted({path for path in listed if listed.count(path) > 1})
+    assert not twice, f"{LAYOUT.name} lists modules more than once: {twice}"
     named = set(re.findall(r"\b((?:rov_mav|sim_bridge)/[\w/]*\w\.py)\b", LAYOUT.read_text()))
     tree = {str(p.relative_to(ROOT)) for top in ("rov_mav", "sim_bridge") for p in (ROOT / top).rglob("*.py")
             if p.name != "__init__.py"}

@@ -1,4 +1,5 @@
-"""The simulated water: constant and periodic disturbance, a slow current, sensor noise (simulation only)."""
+"""The simulated water: constant and periodic disturbance, a slow current, sensor noise, the bottom and an ice
+ceiling (simulation only)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pydantic import Field, field_validator, model_validator
 from rov_mav import config
 from rov_mav.model import kernel
 from rov_mav.model.navigation import Navigation, NavigationError, parse_navigation
+from rov_mav.model.seafloor import Surface, SurfaceSchema
 from rov_mav.model.vehicle_faults import (
     OFFLINE_VOLTAGE,
     VehicleFaultError,
@@ -52,6 +54,8 @@ class EnvironmentSchema(config.StrictModel):
     telemetry: TelemetrySchema = TelemetrySchema()   # offline only: `run` sees the real link's stream
     vehicle_faults: str | list[str] | None = None      # `rov_mav.model.vehicle_faults`' grammar
     navigation: str | dict | None = None               # a preset or a block (`rov_mav.model.navigation`)
+    seafloor: SurfaceSchema | None = None              # the bottom (`rov_mav.model.seafloor`); none: no bottom
+    ice: SurfaceSchema | None = None                   # an ice ceiling above the vehicle; none: open water
 
     @field_validator("navigation")
     @classmethod
@@ -98,6 +102,8 @@ class Environment:
     vehicle_faults: VehicleFaults = VehicleFaults()   # what fails on the vehicle, and when
     navigation: Navigation | None = None  # the built-in vehicle's navigation (None: ideal); offline, its errors
     # along the mission as a run meets them (`rov_mav.commands.common.navigation_errors`)
+    seafloor: Surface | None = None       # the bottom (None: too deep to matter, no sounder sees it)
+    ice: Surface | None = None            # an ice ceiling (None: open water up to the surface)
 
     @classmethod
     def from_schema(cls, s: EnvironmentSchema) -> "Environment":
@@ -112,6 +118,8 @@ class Environment:
             vehicle_faults=(parse_vehicle_faults(items_of(s.vehicle_faults, "environment"))
                             if s.vehicle_faults is not None else VehicleFaults()),
             navigation=(parse_navigation(s.navigation, "environment") if s.navigation is not None else None),
+            seafloor=Surface.from_schema(s.seafloor) if s.seafloor is not None else None,
+            ice=Surface.from_schema(s.ice) if s.ice is not None else None,
         )
 
     @property

@@ -113,6 +113,9 @@ class Navigation:
     imu: Imu = field(default_factory=Imu)
     compass: Compass = field(default_factory=Compass)
     bar30: Bar30 = field(default_factory=Bar30)
+    # the built-in vehicle's further sensors, by section, as written (each sensor's own module reads its section and
+    # refuses what it does not know: `sim_bridge.navigation.attached`); any preset, ideal too, may carry them
+    more: dict[str, Any] = field(default_factory=dict, hash=False)
 
     @property
     def ideal(self) -> bool:
@@ -188,7 +191,10 @@ class UgpsSchema(config.StrictModel):
 
 class NavigationSchema(config.StrictModel):
     """A `navigation:` block: a preset to start from (default none), then any sensor's parameters. A `dvl:` or
-    `ugps:` section adds that source to the preset's."""
+    `ugps:` section adds that source to the preset's; another section is one of the built-in vehicle's further
+    sensors (`Navigation.more`), read by that sensor."""
+
+    model_config = config.StrictModel.model_config | {"extra": "allow"}
 
     preset: str = "none"
     imu: ImuSchema | None = None
@@ -212,7 +218,8 @@ def from_schema(s: NavigationSchema, name: str) -> Navigation:
     updates = {kind: _dataclass_of(cls, getattr(s, kind)) for kind, cls in
                (("imu", Imu), ("compass", Compass), ("bar30", Bar30), ("dvl", Dvl), ("ugps", Ugps))
                if getattr(s, kind) is not None}
-    return replace(base, name=name if updates else base.name, **updates)
+    more = dict(s.model_extra or {})
+    return replace(base, name=name if updates else base.name, more=more, **updates)
 
 
 def preset(name: str) -> Navigation:

@@ -25,7 +25,7 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE,
   ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, in GUIDED through `guided`'s position
   controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`; SURFACE as
-  `sim_bridge.autopilot.surface`. Mode changes pass `Sub::set_mode`'s gates (`sim_bridge.autopilot.modes`): GUIDED and
+  `sim_bridge.modes.surface`. Mode changes pass `Sub::set_mode`'s gates (`sim_bridge.modes.gates`): GUIDED and
   POSHOLD need
   `Sub::position_ok` (the EKF's, from `sensors`, and no EKF failsafe), ALT_HOLD a working depth sensor.
 - The failsafes (pilot input, GCS, leak, battery, EKF, depth sensor): `sim_bridge.autopilot.failsafes`, as
@@ -49,15 +49,16 @@ import numpy as np
 
 from rov_mav.model.frames import MAX_MOTORS, frame_of
 from rov_mav.units import north_east
-from sim_bridge.autopilot import arming, buttons, joystick, mixer, modes, surface
+from sim_bridge.autopilot import arming, buttons, joystick, mixer
 from sim_bridge.autopilot.failsafes import Failsafes, Readings
-from sim_bridge.autopilot import guided
-from sim_bridge.autopilot.guided import Guided
-from sim_bridge.autopilot.modes import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
-from sim_bridge.hardware.numeric import f32, float_to_int, is_equal
 from sim_bridge.autopilot.params import Params
 from sim_bridge.autopilot.rc import RCInput
-from sim_bridge.autopilot.stabilize import ASSISTED, Holds
+from sim_bridge.hardware.numeric import f32, float_to_int, is_equal
+from sim_bridge.modes import gates, guided, surface
+from sim_bridge.modes.gates import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
+from sim_bridge.modes.guided import Guided
+from sim_bridge.modes.stabilize import ALT_HOLD, ASSISTED, Holds
+from sim_bridge.modes.terrain import Rangefinder, Surftrak
 
 MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MAV_RESULT_FAILED = 0, 2, 3, 4
 MAV_STATE_BOOT, MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 3, 4, 5
@@ -116,6 +117,8 @@ class ArduSub:
         self.failsafes = Failsafes(t)
         self.surface = surface.SurfaceDetector()
         self._nobaro = False                          # SURFACE entered without a depth sensor (4.7)
+        self.rangefinder = Rangefinder(params)        # `sim_bridge.modes.terrain`: set up at boot
+        self.surftrak = Surftrak()
 
     # -- inputs ----------------------------------------------------------------------------------------------
 
@@ -167,27 +170,31 @@ class ArduSub:
         if arm != self.armed:
             self.holds.reset()
             self.guided.reset()
+            self.surftrak.reset()
             self._held = None
         self.armed = arm
         return MAV_RESULT_ACCEPTED
 
     def set_mode(self, custom_mode: int) -> bool:
         """Change mode (ArduSub/mode.cpp, `Sub::set_mode`); False and its warnings when refused
-        (`sim_bridge.autopilot.modes`)."""
+        (`sim_bridge.modes.gates`)."""
         if custom_mode == self.mode:
             return True
         depth_present, depth_failsafe = self.sensors.depth_present, self.failsafes.depth
-        refused = modes.refusal(custom_mode, self.params.firmware, self.position_ok(), depth_present, depth_failsafe)
+        refused = gates.refusal(custom_mode, self.params.firmware, self.position_ok(), depth_present, depth_failsafe)
         if refused:
             self.texts += [(MAV_SEVERITY_WARNING, text) for text in refused]
             return False
         if custom_mode == MODES["SURFACE"]:
-            self._nobaro = modes.barometer_refusal(depth_present, depth_failsafe) is not None
+            self._nobaro = gates.barometer_refusal(depth_present, depth_failsafe) is not None
         if custom_mode != self.mode:
             self.holds.reset()
             self.guided.reset()
             self._held = None
         self.mode = custom_mode
+        if custom_mode == MODES["SURFTRAK"]:
+            depth = float(self._state[0][2]) if self._state is not None else 0.0
+            self.surftrak.enter(self.rangefinder, depth, self._t, self.params, self.texts)
         return True
 
     def motor_test(self, motor: float, throttle_type: float, throttle: float, test_type: int, t: float) -> int:
@@ -267,13 +274,21 @@ class ArduSub:
         self._state = state
         depth_ok = self.sensors.depth_present and not self.failsafes.depth
         at_surface = self.surface.update(self.armed, float(state[0][2]) if depth_ok and state else None, self.params)
+        if state is not None:
+            self.rangefinder.update(t, float(state[0][2]), self.params)
         if not self.armed or state is None:
             return
         if self.mode == MODES["SURFACE"] and at_surface and not self._nobaro:
             self.set_mode(MODES["ALT_HOLD"])                  # ModeReason::SURFACE_COMPLETE
-        if self.mode in ASSISTED:
+        if self.mode in ASSISTED or self.mode == MODES["SURFTRAK"]:
             floor = surface.surface_depth(self.params) if at_surface else None
-            axes = self.holds.axes(self.mode, self.pilot_axes(), *state, dt, climb=surface.climb_rate(self.params),
+            pilot = self.pilot_axes()
+            mode = self.mode
+            if mode == MODES["SURFTRAK"]:                 # ALT_HOLD with its depth target set by the range held
+                self.surftrak.run(self.holds, float(pilot[3]), float(state[0][2]), at_surface, self.rangefinder, t,
+                                  dt, self.params, self.texts)
+                mode = ALT_HOLD
+            axes = self.holds.axes(mode, pilot, *state, dt, climb=surface.climb_rate(self.params),
                                    min_depth=floor, position_ok=self.position_ok())
             if self.mode == MODES["SURFACE"] and self._nobaro:
                 axes[3] = surface.nobaro_throttle(self.params)
@@ -285,7 +300,7 @@ class ArduSub:
 
     def position_target(self, frame: int, type_mask: int, position, velocity, yaw: float, t: float,
                         acceleration=(0.0, 0.0, 0.0), yaw_rate: float = 0.0) -> bool:
-        """SET_POSITION_TARGET_LOCAL_NED's fields: a GUIDED target (`sim_bridge.autopilot.guided`); False (ignored)
+        """SET_POSITION_TARGET_LOCAL_NED's fields: a GUIDED target (`sim_bridge.modes.guided`); False (ignored)
         outside
         GUIDED or when ArduSub would ignore it."""
         if self.mode != MODES["GUIDED"]:
@@ -296,7 +311,7 @@ class ArduSub:
                                t: float) -> bool:
         """SET_POSITION_TARGET_GLOBAL_INT's fields (deg, m, NED m/s) as `GCS_MAVLINK_Sub::handle_message` takes them:
         in ALT_HOLD its altitude (m above the EKF origin, whatever the frame) becomes the depth target unless z is
-        ignored; in GUIDED a target (`sim_bridge.autopilot.guided`), its position from the EKF origin by the frame's
+        ignored; in GUIDED a target (`sim_bridge.modes.guided`), its position from the EKF origin by the frame's
         altitude
         reference (`Location::get_vector_from_origin_NEU`): above the sea, or home (the origin here); above the
         terrain needs terrain data this vehicle has not (no terrain database, no rangefinder), so it is dropped, as an

@@ -13,7 +13,7 @@ every other function, which does nothing here. Pure: `press(buttons)` returns th
 
 from __future__ import annotations
 
-from sim_bridge.autopilot.modes import MODES
+from sim_bridge.modes.gates import MODES
 
 BUTTONS = 32
 DEFAULTS_UP_TO = 16              # `default_js_buttons` sets BTN0..15

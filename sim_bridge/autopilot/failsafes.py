@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim_bridge.autopilot.modes import MODES, NEED_DEPTH
+from sim_bridge.modes.gates import MODES, NEED_DEPTH
 
 CRITICAL, WARNING = 2, 4                              # MAV_SEVERITY
 LEAK_PERIOD, BATTERY_PERIOD, FAST_PERIOD = 0.3, 0.1, 0.02   # s: three_hz_loop, update_batt_compass, fifty_hz_loop

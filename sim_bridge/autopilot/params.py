@@ -40,7 +40,7 @@ STREAM_DEFAULTS = {"RAW_SENS": 2, "EXT_STAT": 2, "RC_CHAN": 2, "RAW_CTRL": 0, "P
                    "EXTRA1": 10, "EXTRA2": 10, "EXTRA3": 3, "PARAMS": 0, "ADSB": 0}
 
 
-# GUIDED's position and attitude controllers (`sim_bridge.autopilot.guided`), by their 4.5 names and units: ArduSub
+# GUIDED's position and attitude controllers (`sim_bridge.modes.guided`), by their 4.5 names and units: ArduSub
 # 4.5.3's
 # defaults, read from its SITL. WPNAV_SPEED is AUTO's leg speed (read by a run flying the vehicle's mission).
 GUIDED_DEFAULTS = {
@@ -179,7 +179,7 @@ def _table(names: Names, frame: int) -> list[Spec]:
 
 def _failsafe_table(names: Names) -> list[Spec]:
     """The leak, EKF, battery-monitor and SURFACE parameters (`sim_bridge.autopilot.failsafes`,
-    `sim_bridge.autopilot.surface`), with
+    `sim_bridge.modes.surface`), with
     Sub's defaults: ArduSub/Parameters.cpp and defines.h (FS_LEAK_ENABLE 1 warn only, FS_EKF_ACTION 0 disabled,
     SURFACE_DEPTH -10 cm), AP_BattMonitor_Params.cpp (BATT_LOW_VOLT 0 outside Copter: no battery failsafe by default,
     BATT_LOW_TIMER 10 s), AC_WPNav's WPNAV_SPEED_UP (above) capped by PILOT_SPEED_UP."""
@@ -197,9 +197,22 @@ def _failsafe_table(names: Names) -> list[Spec]:
         Spec("SURFACE_DEPTH", -10.0, REAL32),          # cm (negative: below the surface)
         Spec("PILOT_SPEED_UP", 500, INT16),            # cm/s (ArduSub/config.h PILOT_VELZ_MAX)
     ]
+    specs += _rangefinder_table(names)
     if names.sysid == "MAV_SYSID":                     # 4.7 (PR #29996): SURFACE without a depth sensor
         specs.append(Spec("SFC_NOBARO_THST", 10, INT8))    # % throttle up, -100..100
     return specs
+
+
+def _rangefinder_table(names: Names) -> list[Spec]:
+    """The rangefinder and SURFTRAK (`sim_bridge.modes.terrain`): AP_RangeFinder_Params.cpp (RNGFND1_TYPE 0
+    none, 10 MAVLink; RNGFND1_ORIENT 25, down; 4.7's RNGFND1_MIN/MAX in m, 0.2/7.0, were 4.5's RNGFND1_MIN_CM/MAX_CM,
+    20/700), ArduSub/Parameters.cpp (RNGFND_SQ_MIN 90, SURFTRAK_DEPTH -50 cm, PILOT_SPEED_DN 0: PILOT_SPEED_UP's,
+    PILOT_ACCEL_Z 100 cm/s/s)."""
+    limits = ([Spec("RNGFND1_MIN", 0.2, REAL32), Spec("RNGFND1_MAX", 7.0, REAL32)] if names.sysid == "MAV_SYSID"
+              else [Spec("RNGFND1_MIN_CM", 20, INT16), Spec("RNGFND1_MAX_CM", 700, INT16)])
+    return [Spec("RNGFND1_TYPE", 0, INT8), Spec("RNGFND1_ORIENT", 25, INT8), *limits,
+            Spec("RNGFND_SQ_MIN", 90, INT8), Spec("SURFTRAK_DEPTH", -50.0, REAL32),
+            Spec("PILOT_SPEED_DN", 0, INT16), Spec("PILOT_ACCEL_Z", 100, INT16)]
 
 
 def stored_value(value: float, ptype: int) -> float:

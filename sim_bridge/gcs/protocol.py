@@ -78,6 +78,9 @@ class Protocol:
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self.vehicle.position_target_global(msg.coordinate_frame, msg.type_mask, msg.lat_int * 1e-7,
                                                 msg.lon_int * 1e-7, msg.alt, (msg.vx, msg.vy, msg.vz), t)
+        elif kind == "DISTANCE_SENSOR":        # `GCS_MAVLINK::handle_distance_sensor`: from anyone, to the rangefinder
+            self.vehicle.rangefinder.handle(msg.orientation, msg.current_distance, msg.min_distance, msg.max_distance,
+                                            msg.signal_quality, msg.type, t)
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg, scheduler, t)
         elif kind == "SET_MODE":

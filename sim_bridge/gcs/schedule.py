@@ -15,13 +15,15 @@ from collections.abc import Callable
 
 STREAMS = {
     "RAW_SENS": ("SCALED_PRESSURE2",),
-    "EXT_STAT": ("SYS_STATUS", "MISSION_CURRENT"),
+    "EXT_STAT": ("SYS_STATUS", "MISSION_CURRENT", "NAMED_VALUE_FLOAT"),
     "RC_CHAN": ("SERVO_OUTPUT_RAW", "RC_CHANNELS"),
     "POSITION": ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     "EXTRA1": ("ATTITUDE",),
     "EXTRA2": ("VFR_HUD",),
-    "EXTRA3": ("SYSTEM_TIME", "BATTERY_STATUS", "EKF_STATUS_REPORT"),
+    "EXTRA3": ("SYSTEM_TIME", "BATTERY_STATUS", "EKF_STATUS_REPORT", "DISTANCE_SENSOR"),
 }
+# 4.5 also streamed RANGEFINDER in EXTRA3 (ArduSub/GCS_Mavlink.cpp); 4.7 sends it only when asked (PR #31095)
+STREAMS_4_5 = {"RANGEFINDER": "EXTRA3"}
 GROUP_OF = {name: group for group, names in STREAMS.items() for name in names}
 # MAV_DATA_STREAM ids of REQUEST_DATA_STREAM -> stream groups (0 = all).
 DATA_STREAM_GROUPS = {1: ("RAW_SENS",), 2: ("EXT_STAT",), 3: ("RC_CHAN",), 4: ("RAW_CTRL",), 6: ("POSITION",),

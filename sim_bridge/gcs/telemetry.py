@@ -27,6 +27,7 @@ EARTH_RADIUS = 6378137.0                 # m
 SURFACE_PRESSURE = 101325.0              # Pa
 WATER_TEMPERATURE = 15.0                 # deg C
 FIRMWARE_VERSION = {"4.5": (4, 5, 7), "4.7": (4, 7, 2)}
+SIM_HEIGHT_NAMES = ("SimHeight", "SimIceGap")   # NAMED_VALUE_FLOAT names of the true heights (`sim_heights`)
 GIT_HASH = "00000000"          # flight_custom_version and the banner's hash: an emulator has no build to name
 SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
            | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
@@ -74,6 +75,10 @@ class Snapshot:
     depth_healthy: bool = True
     bar30_depth: float | None = None     # m, what the depth sensor reads (None: the estimate's depth)
     truth: tuple[np.ndarray, np.ndarray] | None = None   # the plant's (eta, nu), for SIM_STATE
+    truth_heights: tuple[float | None, float | None] = (None, None)   # m: true height above the bottom, below the ice
+    rangefinder: tuple | None = None     # (distance m, min m, max m, orientation, quality -1..100, MAV type) with data
+    rangefinder_target: float = -0.01    # m: SURFTRAK's range target (-0.01: none, ArduSub's -1 cm)
+    rangefinder_log: tuple | None = None # (distance m, status, orientation, quality) with a backend, for RFND
     targets: tuple[float, float, float, float] = (math.nan,) * 4   # held roll, pitch, yaw (rad), depth (m); NaN: none
 
     @property
@@ -249,6 +254,40 @@ def sim_state(s: Snapshot):
                                     0.0, *map(float, v), round(lat * 1e7), round(lon * 1e7))
 
 
+def sim_heights(s: Snapshot) -> list:
+    """The truth beside SIM_STATE where the water has a bottom or an ice ceiling (the built-in vehicle's own: no
+    ArduPilot SITL sends these): NAMED_VALUE_FLOAT "SimHeight", the true height of the vehicle's origin above the
+    bottom straight below it, and "SimIceGap", the true distance below the ice straight above, in m."""
+    return [ENCODER.named_value_float_encode(s.ms, name.encode(), float(value))
+            for name, value in zip(SIM_HEIGHT_NAMES, s.truth_heights) if value is not None]
+
+
+def distance_sensor(s: Snapshot):
+    """The autopilot's own DISTANCE_SENSOR of its rangefinder while it has data (`GCS_MAVLINK::send_distance_sensor`,
+    a MAVLink-fed one re-sent too): cm capped at 65535, id 0 (the instance), covariance and fovs 0, quality -1 sent
+    as 0, 0 and 1 as 1."""
+    if s.rangefinder is None:
+        return None
+    distance, low, high, orientation, quality, kind = s.rangefinder
+    cm = [min(round(v * 100), 65535) for v in (low, high, distance)]
+    sent = 0 if quality < 0 else 1 if quality <= 1 else quality
+    return ENCODER.distance_sensor_encode(s.ms, *cm, kind, 0, orientation, 0, 0.0, 0.0, [0.0, 0.0, 0.0, 0.0], sent)
+
+
+def rangefinder(s: Snapshot):
+    """RANGEFINDER (`GCS_MAVLINK::send_rangefinder`): the downward rangefinder's distance in m, voltage 0; streamed in
+    4.5's EXTRA3, only when asked for in 4.7 (PR #31095 took it out of the streams)."""
+    if s.rangefinder is None:
+        return None
+    return ENCODER.rangefinder_encode(float(s.rangefinder[0]), 0.0)
+
+
+def named_value_float(s: Snapshot):
+    """`GCS_MAVLINK_Sub::send_info`'s "RFTarget": SURFTRAK's range target in m (-0.01 without one), in every mode
+    (of its batch of named values, the only one emulated)."""
+    return ENCODER.named_value_float_encode(s.ms, b"RFTarget", float(s.rangefinder_target))
+
+
 def gps_global_origin(s: Snapshot):
     """The EKF origin (`GCS_MAVLINK::send_gps_global_origin`): `--origin`, altitude in mm."""
     lat0, lon0, alt0 = s.origin
@@ -273,6 +312,9 @@ BUILDERS = {
     "HOME_POSITION": home_position,
     "MISSION_CURRENT": mission_current,
     "SIM_STATE": sim_state,
+    "DISTANCE_SENSOR": distance_sensor,
+    "RANGEFINDER": rangefinder,
+    "NAMED_VALUE_FLOAT": named_value_float,
     "GPS_GLOBAL_ORIGIN": gps_global_origin,
 }
 NAME_OF_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in BUILDERS}

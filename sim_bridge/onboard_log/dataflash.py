@@ -75,6 +75,9 @@ FORMATS = {"FMT": FMT, **_formats(
     ("POS", "QLLfff", "TimeUS,Lat,Lng,Alt,RelHomeAlt,RelOriginAlt", "sDUmmm", "FGG000"),
     ("BAT", "QBfffffcfBBB", "TimeUS,Inst,Volt,VoltR,Curr,CurrTot,EnrgTot,Temp,Res,RemPct,H,SH", "s#vvAaXOw%-%",
      "F-000C0?0000"),
+    # `RangeFinder::Log_RFND`, the 2025+ layout (Dist a float in m, Quality -1..100); 4.5 wrote Dist as uint16 cm
+    # without Quality ("QBCBB"): the bridge writes this layout for both
+    ("RFND", "QBfBBb", "TimeUS,Instance,Dist,Stat,Orient,Quality", "s#m--%", "F-0---"),
 )}
 
 

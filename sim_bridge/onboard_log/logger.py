@@ -6,7 +6,8 @@ then holds the new number and CRLF); a file starts at arming when LOG_DISARMED i
 same boot goes on in the same file) and at boot otherwise; LOG_FILE_DSRMROT 1 closes it at disarm (with LOG_DISARMED
 0: one file per arming); a reboot closes it. Each file starts with the whole header (`dataflash.header_records`) and
 the mode. ARM at each arming and disarming. Data records: ATT, RATE, RCIN, RCOU, CTUN, BARO (the water pressure
-sensor, instance 1), XKF1, POS and BAT at 10 Hz (ArduSub's 10 Hz loop and its medium attitude rate, `ArduSub.cpp`)
+sensor, instance 1), XKF1, POS, BAT and, with a rangefinder set up (RNGFND1_TYPE), RFND (ArduSub writes it at 20 Hz
+from `Sub::read_rangefinder`; here with the rest) at 10 Hz (ArduSub's 10 Hz loop and its medium attitude rate, `ArduSub.cpp`)
 while the vehicle is armed, and for HAL_LOGGER_ARM_PERSIST (15 s) after it disarms; MODE at each mode change; MSG
 for every text the vehicle sends, and for every STATUSTEXT a station sends it (`GCS_MAVLINK::handle_statustext`:
 "GCS:" before a GCS sysid's text, "SRC=sysid/compid:" before another's); PARM for every parameter set (Default NaN,
@@ -195,4 +196,7 @@ class OnboardLog:
             record(f["BAT"], us, 0, s.voltage, s.voltage, s.current, s.consumed_ah * 1000.0, self._energy_wh, 0.0,
                    0.0, round(100.0 * s.remaining), 1, 100),
         ]
+        if s.rangefinder_log is not None:
+            distance, status, orientation, quality = s.rangefinder_log
+            self._buffer.append(record(f["RFND"], us, 0, distance, status, orientation, quality))
 

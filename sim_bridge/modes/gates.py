@@ -1,9 +1,10 @@
 """ArduSub's flight-mode numbers and the gates a mode change passes (`Sub::set_mode`, ArduSub/mode.cpp), in order:
 - a mode ArduSub does not have: "No such mode N" (`notify_no_such_mode`); one it has that this vehicle does not
-  fly (AUTO, CIRCLE, MOTOR_DETECT, SURFTRAK): "Flight mode change failed NAME";
+  fly (AUTO, CIRCLE, MOTOR_DETECT): "Flight mode change failed NAME";
 - a mode that `requires_GPS()` (GUIDED, POSHOLD, AUTO, CIRCLE; ArduSub/mode.h) without `Sub::position_ok`:
   "Mode change failed: NAME requires position";
-- the mode's `init`: ALT_HOLD (`ModeAlthold::init`) and, in 4.5, SURFACE need `Sub::control_check_barometer` (a depth
+- the mode's `init`: ALT_HOLD (`ModeAlthold::init`), SURFTRAK (`ModeSurftrak::init` runs ALT_HOLD's first) and, in
+  4.5, SURFACE need `Sub::control_check_barometer` (a depth
   sensor found at boot and no depth-sensor failsafe; its own warning first); 4.7's SURFACE never refuses (it rises
   on SFC_NOBARO_THST instead, PR #29996); a refused init adds "Flight mode change failed NAME".
 Every text is a WARNING. The names are the ones this bridge has always reported (upper case, as 4.5's
@@ -16,12 +17,12 @@ MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRC
          "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
 MODE_NAMES = {number: name for name, number in MODES.items()}
 SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL", "GUIDED",
-                                                "SURFACE")})
+                                                "SURFACE", "SURFTRAK")})
 GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 REQUIRES_POSITION = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 # Modes the depth-sensor failsafe leaves for MANUAL (`Sub::failsafe_sensors_check`): ALT_HOLD, SURFACE, and those
 # that require a position.
-NEED_DEPTH = REQUIRES_POSITION | {MODES["ALT_HOLD"], MODES["SURFACE"]}
+NEED_DEPTH = REQUIRES_POSITION | {MODES["ALT_HOLD"], MODES["SURFACE"], MODES["SURFTRAK"]}
 NO_DEPTH_SENSOR = "Depth sensor is not connected."
 DEPTH_SENSOR_ERROR = "Depth sensor error."
 
@@ -45,7 +46,7 @@ def refusal(mode: int, firmware: str, position_ok: bool, depth_present: bool, de
         return [f"Flight mode change failed {name}"]
     if mode in REQUIRES_POSITION and not position_ok:
         return [f"Mode change failed: {name} requires position"]
-    if mode == MODES["ALT_HOLD"] or (mode == MODES["SURFACE"] and firmware == "4.5"):
+    if mode in (MODES["ALT_HOLD"], MODES["SURFTRAK"]) or (mode == MODES["SURFACE"] and firmware == "4.5"):
         text = barometer_refusal(depth_present, depth_failsafe)
         if text is not None:
             return [text, f"Flight mode change failed {name}"]

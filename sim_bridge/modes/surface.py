@@ -1,10 +1,10 @@
 """ArduSub's SURFACE mode (9) and surface detector on the built-in vehicle.
 
-- Entry: `sim_bridge.autopilot.modes.refusal` (4.7's `ModeSurface::init` never refuses; 4.5's needs the depth sensor).
+- Entry: `sim_bridge.modes.gates.refusal` (4.7's `ModeSurface::init` never refuses; 4.5's needs the depth sensor).
 - `ModeSurface::run`, armed, with a depth sensor (not failed): at the surface, ALT_HOLD (ModeReason
   SURFACE_COMPLETE; no disarm); else the depth target rises at min(WPNAV_SPEED_UP, PILOT_SPEED_UP) cm/s (the
   waypoint navigator's default climb, capped by the position controller's limit), through the depth hold of
-  `sim_bridge.autopilot.stabilize`, the pilot keeping roll and pitch (lean angles), yaw rate, forward and lateral.
+  `sim_bridge.modes.stabilize`, the pilot keeping roll and pitch (lean angles), yaw rate, forward and lateral.
   Without one
   (4.7, `nobaro_mode`): throttle 0.5 + SFC_NOBARO_THST x 0.005 (AP_Motors6DOF's throttle axis 2 (throttle - 0.5)),
   no surface detection. Disarmed: nothing runs.

@@ -8,7 +8,7 @@ Stand-ins for ArduSub's cascaded controllers, with the same division of labour (
 - POSHOLD: as ALT_HOLD, and horizontal position held while the forward and lateral sticks are centred; without a
   position estimate the forward and lateral sticks pass straight through (`ModePoshold::control_horizontal`).
 - SURFACE: as ALT_HOLD with the depth target rising at a given climb rate whatever the throttle stick, at most
-  LEASH above the vehicle (a stand-in for the position controller's limited error) (`sim_bridge.autopilot.surface`).
+  LEASH above the vehicle (a stand-in for the position controller's limited error) (`sim_bridge.modes.surface`).
 All work in the mixer's normalised axes (roll, pitch, yaw, throttle, forward, lateral), each clamped to [-1, 1].
 """
 
