@@ -27,8 +27,9 @@ def environment(tmp_path, sounder="ping") -> str:
 
 
 def test_surftrak_holds_the_range_up_a_slope_and_the_link_says_what_a_real_one_does(tmp_path):
+    logs = tmp_path / "logs"
     with BridgeProcess(tmp_path, "--environment", environment(tmp_path), "--start-depth", "6", "--param",
-                       "FS_PILOT_INPUT=0", speedup=SPEEDUP) as bridge:
+                       "FS_PILOT_INPUT=0", "--log-dir", str(logs), speedup=SPEEDUP) as bridge:
         gcs = Gcs(bridge.port, speedup=SPEEDUP, rate=5.0)
         try:
             gcs.connect()
@@ -73,6 +74,15 @@ def test_surftrak_holds_the_range_up_a_slope_and_the_link_says_what_a_real_one_d
     assert rfs and all(value == pytest.approx(target, abs=0.006) for value in rfs)   # the text says 2 decimals
     assert climbed > 0.5                                    # it went up the slope
     assert np.sqrt(np.mean((heights - target) ** 2)) < 0.15 and heights.min() > target - 0.3
+    # the vehicle's own log, read by pymavlink's DataFlash reader: RFND as ArduSub writes it
+    log = mavutil.mavlink_connection(str(next(logs.glob("*.BIN"))))
+    rows = []
+    while (m := log.recv_match(type="RFND")) is not None:
+        rows.append((m.Instance, m.Dist, m.Stat, m.Orient, m.Quality))
+    assert len(rows) > 100 and all(r[0] == 0 and r[3] == 25 for r in rows)
+    good = [r for r in rows if r[2] == 4]
+    assert len(good) > 0.95 * len(rows) and all(abs(r[1] - target) < 0.3 for r in good)
+    assert sum(r[4] >= 90 for r in good) > 0.9 * len(good)          # the rest: the sounder's dropouts, quality 0
 
 
 def test_without_a_bottom_in_view_the_sounder_says_invalid_and_surftrak_waits(tmp_path):

@@ -59,6 +59,7 @@ class FakeSession:
         self.vehicle = SimpleNamespace(sysid=1, compid=1)
         self.heartbeat = SimpleNamespace(custom_mode=mode)
         self.origins: dict = {}
+        self.taps: list = []
         self.armed = True
         self.sysid = 200
         self.motor_test: list[int] | None = None

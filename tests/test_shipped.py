@@ -67,7 +67,8 @@ def test_a_path_is_left_to_its_loader(elsewhere, text):
 def test_an_unknown_name_lists_the_shipped_ones(elsewhere):
     with pytest.raises(ConfigError) as info:
         shipped.resolve("mission", "sqare")
-    assert str(info.value).startswith("sqare: no such file, nor a shipped mission (identify, line, square, ")
+    assert str(info.value).startswith("sqare: no such file, nor a shipped mission (identify, kelp_transect, line, "
+                                      "square, ")
 
 
 def test_every_shipped_file_loads(elsewhere):

@@ -20,8 +20,9 @@ DESCRIPTION = """\
 A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a ground station (QGroundControl,
 MAVProxy), MAVSDK or `rov-mav run` can fly it as they would a real one or ArduSub SITL.
 
-What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD/GUIDED/SURFACE,
-the assisted ones holding attitude, depth and position with simple loops of its own; other modes refused), arming and
+What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD/GUIDED/SURFACE/
+SURFTRAK, the assisted ones holding attitude, depth and position with simple loops of its own; other modes refused),
+arming and
 DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
 SET_MESSAGE_INTERVAL / REQUEST_MESSAGE / REQUEST_DATA_STREAM, RC_CHANNELS_OVERRIDE exactly as ArduSub treats it
 (only from the GCS sysid, expiry after RC_OVERRIDE_TIME), MANUAL_CONTROL with its buttons, the frame FRAME_CONFIG
@@ -41,6 +42,13 @@ silence, time_boot_ms from 0, HEARTBEAT BOOT, then "ArduPilot Ready" 3 s after t
 stored parameters); a leak; a sagging battery; the horizontal position source lost (the EKF's position flags drop
 after 7 s, constant-position mode and no LOCAL_POSITION_NED after 15 s); a failed depth sensor ("Depth sensor
 error!", depth modes to MANUAL). Each meets ArduSub's own reaction, with its parameters and defaults.
+
+The water may have a bottom and an ice ceiling (an --environment file's seafloor: and ice:: flat, a slope, steps, a
+profile, seeded relief) and the vehicle an echo sounder (its navigation's echo_sounder: ping, ideal or its figures):
+the sounder's DISTANCE_SENSOR comes from the companion (1/194) as BlueOS's Ping service sends it, RNGFND1_TYPE is set
+to 10, and the autopilot's rangefinder feeds SURFTRAK (the range held as ArduSub's mode_surftrak.cpp holds it), its
+own DISTANCE_SENSOR and RFTarget. The true height above the bottom (NAMED_VALUE_FLOAT SimHeight) goes beside
+SIM_STATE.
 
 Every timer (failsafes, override expiry, telemetry rates, time_boot_ms) runs on the simulated clock, which runs
 --speedup times faster than the wall clock: at --speedup 10, send heartbeats and overrides 10x as often.
@@ -129,9 +137,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speedup", type=speedup, default=1.0, metavar="N",
                    help="simulated time runs N times faster than the wall clock (default 1: real time)")
     p.add_argument("--environment", type=mission_file, metavar="NAME|FILE",
-                   help="disturbance, current and sensor noise: the environment: block of a shipped mission (by "
-                        "name) or of a mission file, or a file holding just that block (default: still water, no "
-                        "noise)")
+                   help="disturbance, current, sensor noise, the bottom and ice: the environment: block of a shipped "
+                        "mission (by name) or of a mission file, or a file holding just that block (default: still "
+                        "water, no noise, no bottom)")
     p.add_argument("--vehicle", type=vehicle_file, metavar="NAME|FILE",
                    help=f"the simulated vehicle: {VEHICLE_HELP} (default: bluerov2_heavy)")
     p.add_argument("--firmware", choices=FIRMWARES, default=DEFAULT_FIRMWARE,

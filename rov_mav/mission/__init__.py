@@ -7,4 +7,5 @@
 - mission_items: MAVLink mission items read the way ArduSub reads them
 - missions: a YAML path into a smooth reference
 - qgc_plan: QGroundControl .plan files
+- terrain: an altitude or standoff leg's depth made online: the surface's estimate and a flyable reference
 """

@@ -11,7 +11,7 @@ references are zero, except during an excite segment on roll or pitch. Positions
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -20,6 +20,7 @@ from pydantic import AfterValidator, Field, model_validator
 
 from rov_mav import config
 from rov_mav.mission.excitation import AXES, SIGNALS, Excitation, excitation
+from rov_mav.mission.terrain import MIN_HEIGHT
 from rov_mav.model.environment import Environment, EnvironmentSchema
 from rov_mav.units import Angle, parse_angle, wrap_angle
 
@@ -29,7 +30,9 @@ MAX_RANGE = 10_000.0        # m: |coordinate| of a start or waypoint
 MAX_SPEED = 10.0            # m/s: far above a BlueROV2 Heavy's ~1.5 m/s
 MIN_SEGMENT = 0.01          # s: the shortest hold or line (smooth ramps need a few control periods anyway)
 
-Vec3 = Annotated[list[Annotated[float, Field(ge=-MAX_RANGE, le=MAX_RANGE)]], Field(min_length=3, max_length=3)]
+Coordinate = Annotated[float, Field(ge=-MAX_RANGE, le=MAX_RANGE)]
+Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
+Waypoint = Annotated[list[Coordinate], Field(min_length=2, max_length=3)]   # [north, east(, depth)]
 Velocity = Annotated[list[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED)]], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 Speed = Annotated[float, Field(gt=0, le=MAX_SPEED)]
@@ -56,8 +59,13 @@ class _StartSchema(config.StrictModel):
     heading: Angle = 0.0
 
 
+Height = Annotated[float, Field(ge=MIN_HEIGHT, le=100.0)]
+
+
 class _SegmentSchema(config.StrictModel):
-    goto: Vec3 | None = None        # NED waypoint, m
+    goto: Waypoint | None = None    # NED waypoint, m (north and east alone with an altitude or a standoff)
+    altitude: Height | None = None  # m above the bottom, held along a goto or hold (`rov_mav.mission.terrain`)
+    standoff: Height | None = None  # m below an ice ceiling, the same way
     hold: Seconds | None = None     # s
     line: Velocity | None = None    # constant NED velocity, m/s
     speed: Speed | None = None      # m/s, cruise speed of a goto
@@ -78,6 +86,12 @@ class _SegmentSchema(config.StrictModel):
             raise ValueError("each path entry needs exactly one of " + ", ".join(SEGMENT_KINDS)
                              + " (or an excite on a goto)")
         kind = kinds[0]
+        if self.altitude is not None and self.standoff is not None:
+            raise ValueError("a leg holds an altitude (above the bottom) or a standoff (below the ice), not both")
+        if (self.altitude is not None or self.standoff is not None) and kind not in ("goto", "hold"):
+            raise ValueError(f"altitude and standoff apply to goto and hold, not {kind}")
+        if kind == "goto" and len(self.goto) == 2 and self.altitude is None and self.standoff is None:
+            raise ValueError("a goto needs [north, east, depth], or [north, east] with an altitude or a standoff")
         if kind == "excite":
             return self._check_excite()
         if self.amplitude is not None or self.band is not None:
@@ -160,6 +174,7 @@ class Segment:
     ramp_out: float       # s, at the end (0: ends at full speed)
     extrapolate: bool     # keep moving at the final velocity after the end (a last line without ramp-out)
     excitation: Excitation | None = None   # an offset added over the segment (excite)
+    terrain: tuple[str, float] | None = None   # ("altitude", m) or ("standoff", m): the depth made online
 
     def progress(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """sigma(tau), its first and second derivatives, sigma from 0 to 1 (tau in s since t0).
@@ -272,6 +287,25 @@ class Mission:
                                      f"{MAX_SAMPLES:,} steps ({MAX_SAMPLES * dt:g} s): too long to hold in memory")
         return self.reference(np.arange(n + 1) * dt)
 
+    @property
+    def follows_terrain(self) -> bool:
+        """Some leg holds an altitude or a standoff: its depth is made online from a sounder."""
+        return any(seg.terrain is not None for seg in self.segments)
+
+    def check_offline(self) -> None:
+        """ConfigError when a leg's depth can only be made online (altitude, standoff): the offline loop has no
+        bottom and no sounder."""
+        if self.follows_terrain:
+            label = next(lab for lab, seg in zip(self.labels, self.segments) if seg.terrain is not None)
+            raise config.ConfigError(f"{self.source}: {label}: an altitude or standoff leg takes its depth from an "
+                                     "echo sounder as it flies: fly it with `rov-mav run` (the built-in vehicle has "
+                                     "a sounder); the offline loop has none")
+
+    def terrain(self, t: float) -> tuple[str, float] | None:
+        """The altitude or standoff held at mission time t (None: the planned depth)."""
+        i = int(np.searchsorted(self._starts, t, side="right")) - 1
+        return self.segments[max(i, 0)].terrain if t < self.duration else self.segments[-1].terrain
+
     def progress(self, t: float) -> float:
         """Fraction of the mission's planned duration elapsed at t, in [0, 1]."""
         return min(max(t / self.duration, 0.0), 1.0)
@@ -290,7 +324,7 @@ def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> lis
         where = f"{source}: {labels[i]}"
         last = i == len(spec.path) - 1
         if entry.goto is not None:
-            target = np.array([*entry.goto, pose[3]])
+            target = np.array([*entry.goto[:2], entry.goto[2] if len(entry.goto) == 3 else pose[2], pose[3]])
             if entry.heading is not None:
                 target[3] = pose[3] + wrap_angle(entry.heading - pose[3])
             length = float(np.linalg.norm(target[:3] - pose[:3]))
@@ -323,6 +357,9 @@ def _build_segments(spec: _MissionSchema, source: str, labels: list[str]) -> lis
             travel = entry.duration - 0.5 * (ramp_in + ramp_out)
             target = np.array([*(pose[:3] + velocity * travel), pose[3]])
             seg = Segment(t, entry.duration, pose, target, ramp_in, ramp_out, last and ramp_out == 0.0)
+        if entry.altitude is not None or entry.standoff is not None:
+            seg = replace(seg, terrain=("altitude", entry.altitude) if entry.altitude is not None else
+                          ("standoff", entry.standoff))
         segments.append(seg)
         t += seg.duration
         pose = seg.p1

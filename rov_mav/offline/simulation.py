@@ -58,6 +58,7 @@ def simulate(mission: Mission, settings: ControllerSettings, model: Vehicle, pla
     `wrench_limit` (6,): the plant receives the commanded wrench clipped to it per axis (default: unclipped);
     `navigation_errors`: the law measures the state with the navigation's errors (the environment's, else the
     mission's; seeded by `seed`)."""
+    mission.check_offline()
     environment = mission.environment if environment is None else environment
     plant = model if plant is None else plant
     ref = mission.sampled_reference(dt, duration)

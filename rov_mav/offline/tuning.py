@@ -152,6 +152,7 @@ def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle
     scenario measures the state with the mission's navigation (`environment: navigation`), seeded by its seed."""
     if aggregate not in AGGREGATES:
         raise ValueError(f"unknown aggregate '{aggregate}' (choose from {', '.join(AGGREGATES)})")
+    mission.check_offline()
     ref = mission.sampled_reference(dt, duration)
     capacity = wrench_capacity(model, mission.limits.max_thrust or DEFAULT_MAX_THRUST)
     seeds = np.array([s.seed for s in scenarios], dtype=np.int64)

@@ -13,7 +13,8 @@ the confidence falls with the spread in depth of the returns within the cone (sl
 / range, chosen), is 0 beyond `max_range` or inside `min_range`, and in a dropout (started at a ping with
 `dropout_probability`, `dropout_duration` s on average); a false lock (kelp, a fish: `false_lock_probability` per
 ping, `false_lock_duration` s on average) reads 30-90 % of the true range at a confidence of 60-100 (so some pass
-ArduSub's RNGFND_SQ_MIN of 90). The `ideal` sounder: the same cone and rate, none of the errors.
+ArduSub's RNGFND_SQ_MIN of 90); `outages` are dropouts at set times. The `ideal` sounder: the same cone and rate,
+none of the errors.
 
 On the link as BlueOS's Ping service sends it (the real log: DISTANCE_SENSOR from system 1, component 194, about
 every 0.106 s, min_distance 20 and max_distance 12000 cm, type 1 ULTRASOUND, id 1, orientation 25 PITCH_270 (24
@@ -63,6 +64,8 @@ class EchoSounderSchema(config.StrictModel):
     dropout_duration: Annotated[float, Field(gt=0)] = 1.5     # s, mean
     false_lock_probability: Probability = 0.001
     false_lock_duration: Annotated[float, Field(gt=0)] = 1.0  # s, mean
+    outages: list[Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=2, max_length=2)]] = []
+    # [start s, length s] of vehicle time when it has lost the bottom whatever the odds (a test's dropout)
 
 
 IDEAL = EchoSounderSchema(noise=0.0, noise_per_range=0.0, track=1.0, dropout_probability=0.0,
@@ -89,8 +92,10 @@ def figures(value) -> EchoSounderSchema:
         return PRESETS[value.strip()]
     if not isinstance(value, dict):
         raise NavigationError(f"navigation: {SECTION}: expected a preset name or a mapping")
+    base = figures(value.get("preset", "ping")).model_dump()          # a mapping: a preset's figures, then its own
     try:
-        return config.parse(EchoSounderSchema, value, f"navigation: {SECTION}")
+        return config.parse(EchoSounderSchema, {**base, **{k: v for k, v in value.items() if k != "preset"}},
+                            f"navigation: {SECTION}")
     except config.ConfigError as exc:
         raise NavigationError(str(exc)) from None
 
@@ -182,7 +187,7 @@ class EchoSounder:
         if t < self._lock_until:
             measured, confidence = true_range * self._lock_share, self._lock_confidence
         self._tracked = measured if self._tracked is None else self._tracked + f.track * (measured - self._tracked)
-        if t < self._dropout_until:
+        if t < self._dropout_until or any(start <= t < start + length for start, length in f.outages):
             confidence = 0
         return Sounding(t, t + f.latency, max(self._tracked, 0.0), confidence, true_range, self.orientation)
 

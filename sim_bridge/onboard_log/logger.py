@@ -6,10 +6,11 @@ then holds the new number and CRLF); a file starts at arming when LOG_DISARMED i
 same boot goes on in the same file) and at boot otherwise; LOG_FILE_DSRMROT 1 closes it at disarm (with LOG_DISARMED
 0: one file per arming); a reboot closes it. Each file starts with the whole header (`dataflash.header_records`) and
 the mode. ARM at each arming and disarming. Data records: ATT, RATE, RCIN, RCOU, CTUN, BARO (the water pressure
-sensor, instance 1), XKF1, POS, BAT and, with a rangefinder set up (RNGFND1_TYPE), RFND (ArduSub writes it at 20 Hz
-from `Sub::read_rangefinder`; here with the rest) at 10 Hz (ArduSub's 10 Hz loop and its medium attitude rate, `ArduSub.cpp`)
-while the vehicle is armed, and for HAL_LOGGER_ARM_PERSIST (15 s) after it disarms; MODE at each mode change; MSG
-for every text the vehicle sends, and for every STATUSTEXT a station sends it (`GCS_MAVLINK::handle_statustext`:
+sensor, instance 1), XKF1, POS, BAT and, with a rangefinder set up (RNGFND1_TYPE), RFND (ArduSub writes it at
+20 Hz from `Sub::read_rangefinder`; here with the rest) at 10 Hz (ArduSub's 10 Hz loop and its medium attitude
+rate, `ArduSub.cpp`) while the vehicle is armed, and for HAL_LOGGER_ARM_PERSIST (15 s) after it disarms; MODE at
+each mode change; MSG for every text the vehicle sends, and for every STATUSTEXT a station sends it
+(`GCS_MAVLINK::handle_statustext`:
 "GCS:" before a GCS sysid's text, "SRC=sysid/compid:" before another's); PARM for every parameter set (Default NaN,
 as `AP_Logger::Write_Parameter`). ATT's DesRoll/DesPitch/DesYaw and CTUN's DAlt are the attitude and depth the
 vehicle holds, NaN where it holds none (MANUAL, ACRO's angles, GUIDED, disarmed). Left out: IMU, XKF2-5, GPS, PID

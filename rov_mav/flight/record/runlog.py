@@ -47,7 +47,7 @@ def per_dof(name: str) -> tuple[str, ...]:
 
 COLUMNS = ("t", "vehicle_time", "progress", *DOF, *BODY, *REFERENCE, *per_wrench("tau"), *per_wrench("tau_hat"),
            *per_dof("s"), *per_dof("gamma"), *THRUSTS, *PWMS, "telemetry_age", "latency", "control_rate",
-           "battery_voltage", "horizon", *TRUTH, *REPORTED)
+           "battery_voltage", "horizon", *TRUTH, *REPORTED, "height", "height_true", "surface_depth")
 RUN_INFO = "run.json"
 _STOP = object()
 _MISSION_START = re.compile(r"rov-mav: mission t0 = (\d+(?:\.\d+)?) s since boot")
@@ -71,7 +71,7 @@ def tick_row(r: TickRecord) -> list[str]:
     values = [r.progress, *r.eta, *r.nu, *r.reference, *r.tau, *r.tau_hat, *r.s, *r.gamma, *r.thrusts,
               *r.pwm, r.telemetry_age, r.latency, r.control_rate, r.battery_voltage, r.horizon,
               *(r.truth if r.truth is not None else (np.nan,) * 3),
-              *(r.reported if r.reported is not None else r.eta[:3])]
+              *(r.reported if r.reported is not None else r.eta[:3]), r.height, r.height_true, r.surface]
     return times + [f"{float(v):.9g}" for v in values]
 
 

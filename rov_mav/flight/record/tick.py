@@ -31,3 +31,6 @@ class TickRecord:
     true_disturbance: np.ndarray | None = None   # (6,) when known (simulation)
     truth: np.ndarray | None = None  # (3,) true NED position when a simulator says it (SIM_STATE), else None
     reported: np.ndarray | None = None   # (3,) the vehicle's own position estimate (eta's unless --estimator model)
+    height: float = float("nan")    # m: the echo sounder's last range on an altitude or standoff leg
+    height_true: float = float("nan")   # m: the true height above the leg's surface, when a simulator says it
+    surface: float = float("nan")   # m: the estimated depth of the leg's surface (bottom or ice)

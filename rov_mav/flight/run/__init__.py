@@ -10,5 +10,6 @@
 - run_options: what a run is asked to do and how it ends
 - runner: the phases composed
 - safe_stop: on every exit path, undo what the run changed, step by step
+- terrain_following: altitude and standoff legs: the sounder's readings into the depth the law flies
 - thruster_watch: the answer to a thruster that does not do what it is told
 """

@@ -23,6 +23,7 @@ from rov_mav.flight.state.prediction import MAX_HORIZON, StatePredictor
 from rov_mav.flight.run.run_io import RunIO
 from rov_mav.flight.run.run_options import MODEL, Abort, HandOver, LinkLost, VehicleFailsafe
 from rov_mav.flight.record.runlog import mission_start_text
+from rov_mav.flight.run.terrain_following import TerrainFollowing
 from rov_mav.flight.run.thruster_watch import ThrusterWatch
 from rov_mav.flight.record.tick import TickRecord
 from rov_mav.flight.session.vehicle_events import EXIT_FAILSAFE, EXIT_REBOOT, RebootWatch, failsafe_text, position_lost
@@ -30,6 +31,7 @@ from rov_mav.flight.state.vehicle_state import State
 from rov_mav.mission.approach import approach
 from rov_mav.mission.metrics import tracking_errors
 from rov_mav.mission.missions import Mission
+from rov_mav.mission.terrain import VerticalLimits
 
 STALE_REPORTS = 3                # stale-telemetry episodes (and stalls) reported one by one
 STALL = 0.1                      # wall s between two turns of the loop that mean this process stalled (at least 5
@@ -83,6 +85,8 @@ class FlightLoop:
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self._position_lost_at: float | None = None   # vehicle s since when it has shown none
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3)
+        self.terrain = TerrainFollowing(mission, VerticalLimits(max_depth=io.options.limits.max_depth), io.say) \
+            if mission.follows_terrain else None
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         if controller is not None and io.options.estimator == MODEL:
             io.own = OwnNavigation(controller.model)     # started by a navigation source's first measurement
@@ -278,9 +282,12 @@ class FlightLoop:
         if t >= 0 and not self.announced and not o.dry_run:
             self.announced = True
             io.session.announce(mission_start_text(state.t - t))
-        reference = self._reference(t)
         dt = min(max(now - self._prev_tick, 0.0), o.stale_periods * self.period)
         self._prev_tick = now
+        reference = self._reference(t)
+        if self.terrain is not None:
+            self.terrain.observe(io.soundings.take(), float(state.eta[2]))
+            reference = self.terrain.shape(t, state.t, reference, dt)
         horizon = 0.0
         if isinstance(self.output, Guided):
             out, thrusts = self.output.stream.output, np.full(CHANNELS, np.nan)
@@ -304,7 +311,7 @@ class FlightLoop:
                     self.predictor.observe(state.t, state.eta, state.nu)
                 eta, nu = self.predictor.predicted(state.t, state.eta, state.nu, t_act)
                 horizon = t_act - state.t if eta is not state.eta else 0.0
-            out = self.controller.step(eta, nu, self._reference(t + horizon) if horizon else reference, dt)
+            out = self.controller.step(eta, nu, self._ahead(t, horizon) if horizon else reference, dt)
             tau = self._eased(out.tau)
             if io.decoder.voltage is not None:
                 self.actuation.set_voltage(io.decoder.voltage)
@@ -328,7 +335,8 @@ class FlightLoop:
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
                             progress=self.mission.progress(t), telemetry_age=age, latency=latency,
                             control_rate=len(self._ticks), battery_voltage=self.actuation.voltage, horizon=horizon,
-                            true_disturbance=self.true_disturbance, truth=truth, reported=reported)
+                            true_disturbance=self.true_disturbance, truth=truth, reported=reported,
+                            **self._heights(t, state.t))
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration
@@ -336,6 +344,23 @@ class FlightLoop:
     def _reference(self, t: float) -> np.ndarray:
         """The reference (18,) at mission time t: the lead-in's before 0."""
         return self.mission.reference(t) if t >= 0 else self.lead_in.reference(t + self.lead_in.duration)
+
+    def _ahead(self, t: float, horizon: float) -> np.ndarray:
+        """The reference `horizon` s after mission time t, for the predicted state (an altitude leg's depth carried
+        forward at its rate)."""
+        reference = self._reference(t + horizon)
+        return self.terrain.ahead(reference, horizon) if self.terrain is not None else reference
+
+    def _heights(self, t: float, vehicle_t: float) -> dict:
+        """The tick's height fields on an altitude or standoff leg (the sounder's, the truth's, the surface's)."""
+        leg = self.mission.terrain(t) if self.terrain is not None and t >= 0 else None
+        if leg is None:
+            return {}
+        truth = self.io.truth
+        true = truth.ice_gap if leg[0] == "standoff" else truth.height
+        fresh = truth.height_t is not None and abs(truth.height_t - vehicle_t) <= TRUTH_AGE
+        return {"height": self.terrain.height, "height_true": true if true is not None and fresh else np.nan,
+                "surface": self.terrain.surface}
 
     def _eased(self, tau: np.ndarray) -> np.ndarray:
         """The law's wrench, eased in from the one held during a stall over RESUME_RAMP vehicle s after it: the

@@ -14,6 +14,7 @@ from rov_mav.flight.session.link import CHANNELS, NEUTRAL, Session, mavlink
 from rov_mav.flight.state.own_navigation import OwnNavigation
 from rov_mav.flight.run.run_options import MODEL, Abort, RunOptions
 from rov_mav.flight.session.truth import Truth
+from rov_mav.flight.state.soundings import Soundings
 from rov_mav.flight.session.vehicle_changes import VehicleChanges
 from rov_mav.flight.session.vehicle_frame import DEFAULT_OUTPUTS, MotorOutputs
 from rov_mav.flight.state.vehicle_state import State, StateDecoder
@@ -33,6 +34,8 @@ class RunIO:
         if options.estimator == MODEL:
             session.taps.append(self._navigation_source)
         self.truth = Truth()                      # where a simulator says the vehicle really is (SIM_STATE)
+        self.soundings = Soundings()              # an echo sounder's readings, from whichever component sends them
+        session.taps.append(self._sounding)
         self._jumps_said = 0
         self._own_said = False
         self.last_state: State | None = None      # the state the law flies on
@@ -106,6 +109,10 @@ class RunIO:
         """Every message heard (whoever sent it: the navigation sources speak from their own ids) to our estimator."""
         if self.own is not None and not outgoing:
             self.own.source(msg, self.session.clock.now(), self.truth.origin)
+
+    def _sounding(self, msg, outgoing: bool) -> None:
+        if not outgoing:
+            self.soundings.update(msg, self.session.clock.now())
 
     def send_neutral(self) -> None:
         """Neutral on all eight channels (and in the motor test, when one runs), no waiting."""

@@ -6,5 +6,6 @@
 - model_estimator: the run's own model-aided Kalman filter (run --estimator model)
 - own_navigation: the navigation sources' messages turned into that filter's measurements, and its state
 - prediction: the late state carried forward to the instant its command acts
+- soundings: an echo sounder's DISTANCE_SENSOR readings, from its own service or the autopilot's copy
 - vehicle_state: (t, eta, nu) decoded from ArduSub's ATTITUDE and LOCAL_POSITION_NED
 """
