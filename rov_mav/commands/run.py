@@ -401,6 +401,20 @@ def main(args: argparse.Namespace) -> int:
     return result.code
 
 
+def _terrain_line(terrain: dict) -> str:
+    """The altitude and standoff legs' line: the height held (sounder, truth), strikes, cross-track, speed."""
+    cm = lambda key: f"{terrain[key] * 100:.1f} cm"      # noqa: E731
+    parts = [f"height error RMS {cm('rms_height_error_sounder_m')} by the sounder"]
+    if "rms_height_error_true_m" in terrain:
+        parts[0] += f", {cm('rms_height_error_true_m')} (max {cm('max_height_error_true_m')}) from the true surface"
+    parts.append(f"{terrain['strikes']} strike(s) under 0.3 m")
+    if "rms_cross_track_m" in terrain:
+        truth = f" ({cm('rms_cross_track_true_m')} truly)" if "rms_cross_track_true_m" in terrain else ""
+        parts.append(f"cross-track RMS {cm('rms_cross_track_m')}{truth}; speed along the line "
+                     f"{terrain['rms_speed_error_m_s'] * 100:.1f} cm/s RMS off the plan")
+    return "  terrain legs: " + "; ".join(parts)
+
+
 def _report(args: argparse.Namespace, flight, result, metrics: dict) -> list[str]:
     """What the terminal shows after the run: how it ended, the tracking, the loop, the delays, the recording."""
     loop, cm = metrics["loop"], lambda key: f"{metrics[key] * 100:.2f} cm"
@@ -419,6 +433,8 @@ def _report(args: argparse.Namespace, flight, result, metrics: dict) -> list[str
                 if args.estimator != "vehicle" else ""
             lines.append(f"  the position flown on ({args.estimator}'s estimate) is "
                          f"{cm('rms_estimate_error_truth_m')} RMS from the truth" + own)
+    if metrics.get("terrain"):
+        lines.append(_terrain_line(metrics["terrain"]))
     lines.append(f"  loop: {loop['ticks']} ticks at {loop['control_rate_hz']:.1f} Hz of vehicle time; telemetry-in "
                  f"to command-out p50 {loop['latency_p50_ms']:.2f} ms, p99 {loop['latency_p99_ms']:.2f} ms; thrusters "
                  f"moved {loop['pwm_activity_us_per_s']:.0f} us/s each (mean sum |dPWM| per second)")

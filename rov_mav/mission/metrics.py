@@ -24,6 +24,47 @@ def truth_metrics(truth: np.ndarray, eta_d: np.ndarray, estimate: np.ndarray | N
     return out
 
 
+STRIKE_HEIGHT = 0.3              # m: a height under this is a bottom (or ice) strike
+MOVING = 0.05                    # m/s: the planned speed above which a leg's line has a direction
+
+
+def terrain_metrics(t: np.ndarray, eta: np.ndarray, eta_d: np.ndarray, truth: np.ndarray, heights: np.ndarray) -> dict:
+    """Altitude and standoff legs: the height held against the leg's own (by the sounder, and by the truth where a
+    simulator says it), strikes (episodes under STRIKE_HEIGHT, by the truth when known, else by the sounder), and
+    where the plan moves, the cross-track error (horizontal distance off the planned line, of the estimate flown on
+    and of the truth) and the speed along the line less the planned speed. t (N,), eta, eta_d (N, 6), truth (N, 3),
+    heights (N, 3): sounder, true, target (NaN off the legs)."""
+    measured, true, target = heights.T
+    leg = np.isfinite(target)
+    if not leg.any():
+        return {}
+    out = {"samples": int(leg.sum())}
+    seen = leg & np.isfinite(measured)
+    out["rms_height_error_sounder_m"] = _rms(measured[seen] - target[seen])
+    known = leg & np.isfinite(true)
+    if known.any():
+        out["rms_height_error_true_m"] = _rms(true[known] - target[known])
+        out["max_height_error_true_m"] = float(np.abs(true[known] - target[known]).max())
+        out["min_height_true_m"] = float(true[known].min())
+    low = np.where(known, true, measured)[leg] < STRIKE_HEIGHT
+    out["strikes"] = int(np.sum(low[1:] & ~low[:-1]) + (low[0] if low.size else 0))
+    if t.size > 2:
+        planned = np.gradient(eta_d[:, :2], t, axis=0)
+        speed = np.linalg.norm(planned, axis=1)
+        moving = leg & (speed > MOVING)
+        if moving.any():
+            along = planned[moving] / speed[moving, None]
+            across = np.stack([-along[:, 1], along[:, 0]], axis=1)
+            out["rms_cross_track_m"] = _rms(np.sum((eta[moving, :2] - eta_d[moving, :2]) * across, axis=1))
+            truly = np.all(np.isfinite(truth[moving, :2]), axis=1)
+            if truly.any():
+                off = np.sum((truth[moving, :2] - eta_d[moving, :2]) * across, axis=1)[truly]
+                out["rms_cross_track_true_m"] = _rms(off)
+            flown = np.sum(np.gradient(eta[:, :2], t, axis=0)[moving] * along, axis=1)
+            out["rms_speed_error_m_s"] = _rms(flown - speed[moving])
+    return out
+
+
 def tracking_errors(eta: np.ndarray, eta_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position error norm (m) and attitude error norm (rad, angles wrapped) per sample; (N, 6) -> (N,), (N,)."""
     e = tracking_error(eta, eta_d)

@@ -24,7 +24,7 @@ from rov_mav.flight.run.run_options import DEFAULT_MAX_TILT_DEG, Limits, RunOpti
 from rov_mav.flight.run.runner import Runner, warm_up
 from rov_mav.flight.session.link import Session
 from rov_mav.flight.thrusters.actuation import Actuation
-from rov_mav.mission.metrics import run_metrics, truth_metrics
+from rov_mav.mission.metrics import run_metrics, terrain_metrics, truth_metrics
 from rov_mav.mission.missions import Mission
 from rov_mav.model.vehicle import Vehicle
 
@@ -171,6 +171,9 @@ class Flight:
                           result.eta_d[flown], result.tau[flown], result.tau_hat[flown], self.true_disturbance,
                           result.completed)
         out.update(truth_metrics(result.truth[flown], result.eta_d[flown], result.eta[flown], result.reported[flown]))
+        if result.heights is not None and self.mission.follows_terrain:
+            out["terrain"] = terrain_metrics(result.t[flown], result.eta[flown], result.eta_d[flown],
+                                             result.truth[flown], result.heights[flown])
         out["loop"] = result.loop_figures()
         if result.own_estimator is not None:
             out["own_estimator"] = result.own_estimator

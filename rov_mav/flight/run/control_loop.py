@@ -84,7 +84,7 @@ class FlightLoop:
         self.reboots = RebootWatch(io.session.clock)
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self._position_lost_at: float | None = None   # vehicle s since when it has shown none
-        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3)
+        self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3, heights=3)
         self.terrain = TerrainFollowing(mission, VerticalLimits(max_depth=io.options.limits.max_depth), io.say) \
             if mission.follows_terrain else None
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
@@ -328,15 +328,17 @@ class FlightLoop:
         self._count_tick(state.t, latency, horizon, pwm)
         truth = io.truth.position if io.truth.t is not None and abs(io.truth.t - state.t) <= TRUTH_AGE else None
         reported = state.reported if state.reported is not None else state.eta[:3]
+        heights = self._heights(t, state.t)
         if t >= 0 and fresh:
             self.log.append(t=t, eta=state.eta, eta_d=reference[:6], tau=out.tau, tau_hat=out.tau_hat,
-                            truth=truth if truth is not None else np.full(3, np.nan), reported=reported)
+                            truth=truth if truth is not None else np.full(3, np.nan), reported=reported,
+                            heights=[heights.get(k, np.nan) for k in ("height", "height_true", "height_target")])
         record = TickRecord(t=t, vehicle_time=state.t, eta=state.eta, nu=state.nu, reference=reference, tau=out.tau,
                             tau_hat=out.tau_hat, s=out.s, gamma=out.gamma, thrusts=thrusts, pwm=pwm,
                             progress=self.mission.progress(t), telemetry_age=age, latency=latency,
                             control_rate=len(self._ticks), battery_voltage=self.actuation.voltage, horizon=horizon,
                             true_disturbance=self.true_disturbance, truth=truth, reported=reported,
-                            **self._heights(t, state.t))
+                            **{k: v for k, v in heights.items() if k != "height_target"})
         for sink in self.sinks:
             sink.log_tick(record)
         return t >= self.mission.duration
@@ -352,7 +354,8 @@ class FlightLoop:
         return self.terrain.ahead(reference, horizon) if self.terrain is not None else reference
 
     def _heights(self, t: float, vehicle_t: float) -> dict:
-        """The tick's height fields on an altitude or standoff leg (the sounder's, the truth's, the surface's)."""
+        """The tick's height fields on an altitude or standoff leg (the sounder's, the truth's, the surface's, the
+        leg's own); none elsewhere."""
         leg = self.mission.terrain(t) if self.terrain is not None and t >= 0 else None
         if leg is None:
             return {}
@@ -360,7 +363,7 @@ class FlightLoop:
         true = truth.ice_gap if leg[0] == "standoff" else truth.height
         fresh = truth.height_t is not None and abs(truth.height_t - vehicle_t) <= TRUTH_AGE
         return {"height": self.terrain.height, "height_true": true if true is not None and fresh else np.nan,
-                "surface": self.terrain.surface}
+                "surface": self.terrain.surface, "height_target": leg[1]}
 
     def _eased(self, tau: np.ndarray) -> np.ndarray:
         """The law's wrench, eased in from the one held during a stall over RESUME_RAMP vehicle s after it: the

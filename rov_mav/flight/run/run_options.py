@@ -97,6 +97,7 @@ class RunResult:
     stalls: int                        # times this process stalled
     report: list[str] = field(default_factory=list)
     own_estimator: dict | None = None  # --estimator model: what its filter did (`OwnNavigation.figures`)
+    heights: np.ndarray | None = None  # (N, 3) on altitude/standoff legs: the sounder's, the true, the leg's (else NaN)
 
     def loop_figures(self) -> dict:
         """The `loop` block (`mission.metrics.loop_figures`), with the prediction's horizon p50/p99 (ms), the round

@@ -174,4 +174,4 @@ class Runner:
             horizon_ms=loop.column("horizon_ms"), pwm=loop.column("pwm"),
             round_trip_ms=self.round_trip_ms,
             stalls=self.loop.stalls, report=report,
-            own_estimator=self.io.own.figures() if self.io.own is not None else None)
+            own_estimator=self.io.own.figures() if self.io.own is not None else None, heights=log.column("heights"))

@@ -35,16 +35,15 @@ class TerrainFollowing:
         self.stop_after = stop_after
         self.bottom, self.ice = SurfaceEstimate(), SurfaceEstimate(looking_up=True)
         self.reference: TerrainReference | None = None
-        self.height: float = math.nan            # m: the last measured height of the leg's surface (the sounder)
+        self.height: float = math.nan            # m: the last sounding taken in (the sounder's height)
         self.surface: float = math.nan           # m: the estimated depth of the leg's surface
         self.lost_since: float | None = None
         self._climb_said = False
 
     def observe(self, soundings: list[Sounding], depth: float) -> None:
         for s in soundings:
-            (self.ice if s.orientation == UP else self.bottom).update(s.t, depth, s.distance, s.quality)
-            if s.quality > 0:
-                self.height = s.distance
+            if (self.ice if s.orientation == UP else self.bottom).update(s.t, depth, s.distance, s.quality):
+                self.height = s.distance           # the sounder's height, as the estimate took it in
 
     def shape(self, t: float, vehicle_t: float, reference: np.ndarray, dt: float) -> np.ndarray:
         """The reference (18,) at mission time t with its depth, rate and acceleration made for the leg."""
