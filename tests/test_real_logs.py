@@ -309,3 +309,39 @@ def test_what_only_the_dataflash_log_holds_is_dfreaders_reading_of_it(reviews):
     assert onboard["ekf"]["test_ratio_max"]["height"] == pytest.approx(max(height))
     assert onboard["motors"]["lift_max_min"] == pytest.approx(min(lift)) and onboard["motors"]["samples"] == len(lift)
     assert "onboard" not in reviews["mohai-2023-10-18-10-44-55.tlog"]      # a telemetry log holds none of it
+
+
+def test_the_surftrak_dives_bottom_is_rebuilt_as_an_independent_reader_sees_it(tmp_path):
+    """tools/seafloor_from_log.py on the real SURFTRAK dive: its profile is the depth (ArduSub's own altitude) plus
+    the sounder's range, laid along a line at 0.2 m/s of the time since the first sounding, the median in each 0.2 m;
+    held against the same figures computed from pymavlink's own reading of the file, and flyable by the built-in
+    vehicle (the environment file loads)."""
+    import sys
+    import yaml
+
+    from rov_mav.model.environment import load_environment
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    import seafloor_from_log
+
+    log = Path(FOLDER) / "mohai-2023-10-18-09-55-06-surftrak.tlog"
+    out = tmp_path / "env.yaml"
+    assert seafloor_from_log.main([str(log), "--out", str(out), "--speed", "0.2", "--spacing", "0.2"]) == 0
+    profile = np.array(yaml.safe_load(out.read_text())["environment"]["seafloor"]["profile"])
+    assert load_environment(out).seafloor.depth_at(10.0, 0.0) == pytest.approx(np.interp(10.0, *profile.T))
+    m = mavutil.mavlink_connection(str(log), robust_parsing=True)
+    depth_t, depth, range_t, distance = [], [], [], []
+    while (msg := m.recv_match(type=["GLOBAL_POSITION_INT", "DISTANCE_SENSOR"])) is not None:
+        if msg.get_type() == "GLOBAL_POSITION_INT" and msg.get_srcComponent() == 1:
+            depth_t.append(msg._timestamp)
+            depth.append(-msg.relative_alt / 1000.0)
+        elif msg.get_type() == "DISTANCE_SENSOR" and msg.orientation == 25 and msg.signal_quality != 1:
+            range_t.append(msg._timestamp)
+            distance.append(msg.current_distance / 100.0)
+    range_t = np.array(range_t)
+    bottom = np.interp(range_t, depth_t, depth) + np.array(distance)
+    along = np.floor(0.2 * (range_t - range_t[0]) / 0.2).astype(int)
+    expected = {k * 0.2: float(np.median(bottom[along == k])) for k in np.unique(along)}
+    assert len(profile) == len(expected) and profile[-1, 0] == pytest.approx(0.2 * (range_t[-1] - range_t[0]), abs=0.2)
+    theirs = np.array([expected[k] for k in sorted(expected)])
+    assert np.abs(profile[:, 1] - theirs).max() < 0.01
+    assert 7.0 < profile[:, 1].min() < profile[:, 1].max() < 10.7

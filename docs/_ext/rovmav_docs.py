@@ -245,6 +245,9 @@ _COLUMN_TEXT = [   # (pattern, meaning): every column of runlog.COLUMNS must mat
     (r"horizon", "how far ahead the state was predicted, s"),
     (r"(x|y|z)_true", "where a simulator says the vehicle is (empty on a real vehicle)"),
     (r"(x|y|z)_vehicle", "the vehicle's own estimate (as reported, before the run's blending)"),
+    (r"height", "on an altitude or standoff leg: the echo sounder's last range taken in, m (empty elsewhere)"),
+    (r"height_true", "... the true height above the bottom (below the ice), where a simulator says it, m"),
+    (r"surface_depth", "... the estimated depth of the bottom (or the ice), m"),
 ]
 
 

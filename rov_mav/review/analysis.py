@@ -224,3 +224,22 @@ def own_sensors(dive: Dive) -> dict:
         out["rangefinder"] = {"samples": int(r.size), "min_m": float(r.min()), "mean_m": float(r.mean()),
                               "max_m": float(r.max())}
     return out
+
+
+def bottom_profile(dive: Dive, speed: float, spacing: float = 0.1) -> np.ndarray | None:
+    """The bottom's depth along a line, rebuilt from a dive's depth plus its down-looking rangefinder's readings:
+    (K, 2) [distance m, depth m], the median of the soundings in each `spacing` m; None without both. A log holds
+    no horizontal position without a position source, so the soundings are laid along a line in the order they came,
+    `speed` m/s of the time since the first (as a transect flown at that speed): the profile is the bottom the
+    vehicle saw, in time, not a survey of where it was."""
+    depth = dive_depth(dive)
+    if depth is None or not dive.range_m.size:
+        return None
+    wall, d, _ = depth
+    known = np.isfinite(d)
+    bottom = np.interp(dive.range_wall, wall[known], d[known]) + dive.range_m
+    distance = speed * (dive.range_wall - dive.range_wall[0])
+    bins = np.floor(distance / spacing).astype(int)
+    edges = np.flatnonzero(np.diff(bins)) + 1
+    groups = np.split(np.arange(bins.size), edges)
+    return np.array([[bins[g[0]] * spacing, float(np.median(bottom[g]))] for g in groups])
