@@ -166,8 +166,12 @@ def test_the_shipped_survey_plan_is_the_shipped_yaml_survey(tmp_path):
     ([simple_item(1, NAV_TAKEOFF, [0, 0, 0, None, *CORNERS[0], 10]), waypoint(2, *CORNERS[1], -2.0),
       waypoint(3, *CORNERS[2], -2.0)], PlanOptions(), "cannot fly mission.items[0] (NAV_TAKEOFF)"),
     ([waypoint(1, *CORNERS[0], 486.0, frame=0), waypoint(2, *CORNERS[1], 486.0, frame=0)], PlanOptions(),
-     "mission.items[0] (NAV_WAYPOINT): altitude frame GLOBAL (above mean sea level): ArduSub flies only altitudes "
+     "mission.items[0] (NAV_WAYPOINT): altitude frame GLOBAL (above mean sea level): ArduSub flies altitudes "
      "relative to home"),
+    ([waypoint(1, *CORNERS[0], 1.0, frame=10), waypoint(2, *CORNERS[1], 1.0, frame=10)], PlanOptions(),
+     "mission.items[0] (NAV_WAYPOINT): a height above the bottom needs a waypoint with a depth before it"),
+    ([waypoint(1, *CORNERS[0], -2.0), waypoint(2, *CORNERS[1], -1.0, frame=11)], PlanOptions(),
+     "mission.items[1] (NAV_WAYPOINT): altitude -1 m above the terrain: a height above the bottom is positive"),
     ([waypoint(1, *CORNERS[0], 0.0), waypoint(2, *CORNERS[1], -2.0)], PlanOptions(),
      "mission.items[0] (NAV_WAYPOINT): altitude 0 (the depth the vehicle is at) needs a waypoint before it"),
     ([waypoint(1, *CORNERS[0], -2.0), waypoint(2, *CORNERS[1], -2.0)], PlanOptions(speed=15.0),
@@ -259,3 +263,20 @@ def test_run_wants_one_mission_source_and_a_vehicle_to_download_from(tmp_path, a
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip() == ("rov-mav run: error: give a mission (a shipped mission's name or a file), or "
                                 "--mission-from-vehicle with --target (the built-in vehicle starts with no mission)")
+
+
+def test_terrain_frame_waypoints_become_altitude_legs_and_the_turns_between_them_keep_the_height(tmp_path):
+    """QGC's altitude mode Terrain (MAV_FRAME_GLOBAL_TERRAIN_ALT, and its _INT twin): ArduSub's ABOVE_TERRAIN
+    waypoints (PR #26450), a height above the bottom its rangefinder sees; here altitude legs, planned at the depth
+    before them, the holds and turns in place at such a waypoint holding its height too."""
+    items = [waypoint(1, *CORNERS[0], -6.0), waypoint(2, *CORNERS[1], 1.5, hold=4, frame=10),
+             waypoint(3, *CORNERS[2], 1.0, frame=11), waypoint(4, *CORNERS[3], -5.0)]
+    mission = load(write_plan(tmp_path / "terrain.plan", items))
+    legs = [(label, seg.terrain, round(float(seg.p1[2]), 3)) for label, seg in zip(mission.labels, mission.segments)]
+    assert legs == [("mission.items[1]", ("altitude", 1.5), 6.0),            # the leg to it, planned at 6 m
+                    ("mission.items[1]", ("altitude", 1.5), 6.0),            # its 4 s hold
+                    ("mission.items[2] (turn)", ("altitude", 1.5), 6.0),     # turning where 1.5 m was held
+                    ("mission.items[2]", ("altitude", 1.0), 6.0),
+                    ("mission.items[3] (turn)", ("altitude", 1.0), 6.0),
+                    ("mission.items[3]", None, 5.0)]                         # a depth again
+    assert mission.follows_terrain

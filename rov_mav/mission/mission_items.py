@@ -3,7 +3,9 @@
 Depth (ArduSub/commands_logic.cpp, `Sub::start_command`): a navigation item's altitude is relative to home, and home
 is the water's surface, so d m below the surface is an altitude of -d m. ArduSub refuses an item above the surface
 (altitude > 0: "BAD NAV ALT") and any altitude frame but relative-to-home (MAV_FRAME_GLOBAL_RELATIVE_ALT, or its
-_INT twin: "BAD NAV AltFrame"); so do we, before anything moves. `Sub::do_nav_wp`: latitude and longitude both 0
+_INT twin: "BAD NAV AltFrame") or, since PR #26450 (4.5 on), above the terrain (MAV_FRAME_GLOBAL_TERRAIN_ALT, _INT:
+a height above the bottom its rangefinder sees); so do we, before anything moves. A terrain-frame item becomes an
+altitude leg (`rov_mav.mission.terrain`): planned at the depth before it, its depth made from the echo sounder. `Sub::do_nav_wp`: latitude and longitude both 0
 mean "where the vehicle is" (here: the previous waypoint), altitude 0 "at the current depth" (the previous
 waypoint's); param1 is the time to hold at the waypoint, s.
 
@@ -36,6 +38,7 @@ NAV_WAYPOINT, NAV_LOITER_TIME, DO_CHANGE_SPEED = 16, 19, 178
 FLOWN = (NAV_WAYPOINT, NAV_LOITER_TIME, DO_CHANGE_SPEED)
 POSITIONED = (NAV_WAYPOINT, NAV_LOITER_TIME)
 RELATIVE_ALT_FRAMES = (3, 6)       # MAV_FRAME_GLOBAL_RELATIVE_ALT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+TERRAIN_ALT_FRAMES = (10, 11)      # MAV_FRAME_GLOBAL_TERRAIN_ALT, MAV_FRAME_GLOBAL_TERRAIN_ALT_INT
 FRAME_NAMES = {0: "GLOBAL (above mean sea level)", 2: "MISSION", 5: "GLOBAL_INT (above mean sea level)",
                10: "GLOBAL_TERRAIN_ALT", 11: "GLOBAL_TERRAIN_ALT_INT"}
 COMMAND_NAMES = {16: "NAV_WAYPOINT", 17: "NAV_LOITER_UNLIM", 18: "NAV_LOITER_TURNS", 19: "NAV_LOITER_TIME",
@@ -101,10 +104,11 @@ class Planned:
 @dataclass
 class _Waypoint:
     label: str
-    ned: np.ndarray           # (3,) m
+    ned: np.ndarray           # (3,) m (a terrain-frame item's depth: the one before it, as planned)
     hold: float               # s
     yaw: float | None         # rad
     speed: float              # m/s of the leg that ends here
+    altitude: float | None = None   # m above the bottom (a terrain-frame item), else None
 
 
 def build_mission(planned: Planned, options: PlanOptions = PlanOptions()) -> Mission:
@@ -156,24 +160,46 @@ def _waypoints(planned: Planned, origin: tuple[float, float], speed: float) -> l
                 speed = _checked_speed(item.params[1], where)
         elif item.command in POSITIONED:
             previous = waypoints[-1].ned if waypoints else None
+            altitude = _terrain_altitude(item, previous, where)
             ned = _position(item, origin, previous, where)
             yaw = item.params[3] if planned.use_yaw and item.command == NAV_WAYPOINT else math.nan
             hold = item.params[0] if math.isfinite(item.params[0]) else 0.0
             if hold < 0:
                 raise config.ConfigError(f"{where}: hold time {hold:g} s: expected 0 or more")
             waypoints.append(_Waypoint(item.label, ned, hold,
-                                       wrap_angle(math.radians(yaw)) if math.isfinite(yaw) else None, speed))
+                                       wrap_angle(math.radians(yaw)) if math.isfinite(yaw) else None, speed,
+                                       altitude))
     return waypoints
+
+
+def _terrain_altitude(item: MissionItem, previous: np.ndarray | None, where: str) -> float | None:
+    """A terrain-frame item's height above the bottom (ArduSub reads ABOVE_TERRAIN waypoints, PR #26450, as a
+    height above the terrain its rangefinder sees: `Sub::do_nav_wp`, AC_WPNav's terrain offset), else None."""
+    if item.frame not in TERRAIN_ALT_FRAMES:
+        return None
+    if previous is None:
+        raise config.ConfigError(f"{where}: a height above the bottom needs a waypoint with a depth before it "
+                                 "(altitude mode Relative): the mission's start must be a place and a depth")
+    alt = item.params[6]
+    if not alt > 0:
+        raise config.ConfigError(f"{where}: altitude {alt:g} m above the terrain: a height above the bottom is "
+                                 "positive (QGC: altitude mode Terrain)")
+    return float(alt)
 
 
 def _position(item: MissionItem, origin: tuple[float, float], previous: np.ndarray | None,
               where: str) -> np.ndarray:
-    """NED metres of a positioned item, by ArduSub's reading of its frame and altitude."""
-    if item.frame not in RELATIVE_ALT_FRAMES:
+    """NED metres of a positioned item, by ArduSub's reading of its frame and altitude (a terrain-frame item at the
+    depth before it: its own depth is made as it flies, `rov_mav.mission.terrain`)."""
+    terrain = item.frame in TERRAIN_ALT_FRAMES
+    if item.frame not in RELATIVE_ALT_FRAMES and not terrain:
         frame = FRAME_NAMES.get(item.frame, str(item.frame))
-        raise config.ConfigError(f"{where}: altitude frame {frame}: ArduSub flies only altitudes relative to home "
-                                 f"(the surface), frame GLOBAL_RELATIVE_ALT (QGC: altitude mode Relative)")
+        raise config.ConfigError(f"{where}: altitude frame {frame}: ArduSub flies altitudes relative to home "
+                                 f"(the surface), frame GLOBAL_RELATIVE_ALT (QGC: altitude mode Relative), or above "
+                                 f"the terrain, GLOBAL_TERRAIN_ALT (QGC: Terrain)")
     lat, lon, alt = item.params[4:7]
+    if terrain and previous is not None and math.isfinite(alt):
+        alt = 0.0                 # at the planned depth before it; the leg's own is made from the sounder
     if not all(math.isfinite(v) for v in (lat, lon, alt)):
         raise config.ConfigError(f"{where}: no position (latitude, longitude and altitude must be numbers)")
     if alt > 0:
@@ -205,11 +231,14 @@ def _path(waypoints: list[_Waypoint], ramp_time: float) -> tuple[list[dict], lis
     path: list[dict] = []
     labels: list[str] = []
 
+    here: float | None = None            # the height above the bottom held where the vehicle is (None: a depth)
+
     def turn_to(target: float, label: str) -> None:
         nonlocal heading
         change = wrap_angle(target - heading)
         if abs(change) > MIN_TURN:
-            path.append({"hold": max(abs(change) / TURN_RATE, ramp_time), "heading": target})
+            path.append({"hold": max(abs(change) / TURN_RATE, ramp_time), "heading": target,
+                         **({"altitude": here} if here is not None else {})})
             labels.append(f"{label} (turn)")
             heading = target
 
@@ -223,6 +252,8 @@ def _path(waypoints: list[_Waypoint], ramp_time: float) -> tuple[list[dict], lis
             if wp.yaw is None and math.hypot(delta[0], delta[1]) >= MIN_TURN_LEG:
                 turn_to(math.atan2(delta[1], delta[0]), wp.label)
             entry = {"goto": [float(v) for v in wp.ned], "speed": wp.speed}
+            if wp.altitude is not None:
+                entry = {"goto": [float(v) for v in wp.ned[:2]], "speed": wp.speed, "altitude": wp.altitude}
             if wp.yaw is not None:
                 entry["heading"] = wp.yaw
                 heading = wp.yaw
@@ -231,8 +262,9 @@ def _path(waypoints: list[_Waypoint], ramp_time: float) -> tuple[list[dict], lis
             position = wp.ned
         elif wp.yaw is not None:
             turn_to(wp.yaw, wp.label)
+        here = wp.altitude
         if wp.hold > 0:
-            path.append({"hold": wp.hold})
+            path.append({"hold": wp.hold, **({"altitude": here} if here is not None else {})})
             labels.append(wp.label)
     return path, labels, start_heading
 
