@@ -21,6 +21,13 @@ def north_east(lat: float, lon: float, origin: tuple[float, float, float]) -> tu
             math.radians(lon - lon0) * EARTH_RADIUS * math.cos(math.radians(lat0)))
 
 
+def lat_lon(north: float, east: float, origin: tuple[float, float, float]) -> tuple[float, float]:
+    """(lat, lon) deg of the point north, east m of the origin on the same flat earth (`north_east`'s inverse)."""
+    lat0, lon0, _ = origin
+    return (lat0 + math.degrees(north / EARTH_RADIUS),
+            lon0 + math.degrees(east / (EARTH_RADIUS * math.cos(math.radians(lat0)))))
+
+
 def wrap_angle(angle):
     """Wrap radians to [-pi, pi); scalars stay floats, arrays stay arrays (the compiled kernel has its own)."""
     if isinstance(angle, (float, int)):         # a scalar (numpy's float64 too), without numpy's call

@@ -199,8 +199,8 @@ def _global(dive: Dive, frame: int, north: float, east: float, alt: float, mask:
 def test_global_int_targets_by_their_altitude_frame_and_in_alt_hold_the_depth():
     """SET_POSITION_TARGET_GLOBAL_INT (GCS_MAVLINK_Sub::handle_message): in GUIDED a position from the EKF origin,
     its altitude above home (RELATIVE_ALT; home is the origin here) or above the sea (GLOBAL); above the terrain
-    is dropped without terrain data; in ALT_HOLD the altitude (above the origin) is the depth target; in MANUAL it
-    is ignored."""
+    a position alone is dropped (PR #27767 takes position and velocity only); in ALT_HOLD the altitude (above the
+    origin) is the depth target; in MANUAL it is ignored."""
     dive = Dive()
     dive.sub.origin = ORIGIN
     dive.fly(1.0)
@@ -208,7 +208,7 @@ def test_global_int_targets_by_their_altitude_frame_and_in_alt_hold_the_depth():
     dive.fly(40.0)
     assert np.linalg.norm(dive.plant.eta[:3] - [2.0, 1.0, 3.0]) < 0.05, dive.plant.eta
     assert _global(dive, 5, 0.0, 0.0, ORIGIN[2] - 2.0)                # GLOBAL_INT: 2 m below the origin's altitude
-    assert not _global(dive, 11, 5.0, 5.0, 1.0)                        # GLOBAL_TERRAIN_ALT_INT: no terrain data
+    assert not _global(dive, 11, 5.0, 5.0, 1.0)                        # GLOBAL_TERRAIN_ALT_INT, a position alone
     dive.fly(40.0)
     assert np.linalg.norm(dive.plant.eta[:3] - [0.0, 0.0, 2.0]) < 0.1, dive.plant.eta
     assert dive.sub.set_mode(MODES["ALT_HOLD"])
@@ -217,3 +217,39 @@ def test_global_int_targets_by_their_altitude_frame_and_in_alt_hold_the_depth():
     assert abs(dive.plant.eta[2] - 4.0) < 0.1 and np.linalg.norm(dive.plant.eta[:2]) < 0.3, dive.plant.eta
     assert dive.sub.set_mode(MODES["MANUAL"])
     assert not _global(dive, 6, 1.0, 1.0, -1.0)
+
+
+def test_a_terrain_target_holds_its_range_up_a_slope_and_needs_a_rangefinder_to_start():
+    """PR #27767's GUIDED ABOVE_TERRAIN (the live log's ArduSub; 4.7.2 drops such a target underwater): position and
+    velocity in GLOBAL_TERRAIN_ALT_INT, the altitude the rangefinder range to hold. Refused with "Terrain data
+    (rangefinder) not available" before the rangefinder is healthy; then a line at 0.2 m/s up a 10 % slope keeps
+    the range, and while the sounder is silent the depth is held."""
+    from rov_mav.model.seafloor import Surface
+    from sim_bridge.navigation.echo_sounder import EchoSounder
+
+    floor = Surface(depth=4.0, slope=0.1)
+    dive = Dive()
+    dive.sub.params.set("RNGFND1_TYPE", 10)
+    dive.sub.rangefinder.__init__(dive.sub.params)                    # set up at boot, as ArduSub reads it
+    dive.sub.origin = ORIGIN
+    sounder = EchoSounder("ideal", 0, floor, None)
+    silent = [math.inf, -math.inf]
+    assert not _global(dive, 11, 0.0, 0.0, 2.0, mask=POS_VEL_YAW, vel=(0.2, 0.0, 0.0))
+    assert dive.sub.texts[-1][1] == "Terrain data (rangefinder) not available"
+
+    def each(t):
+        for reading in sounder.sample(t, dive.plant.eta, dive.plant.nu):
+            if not silent[0] <= t < silent[1]:
+                for msg, _ in sounder.messages(reading, int(t * 1000)):
+                    dive.sub.rangefinder.handle(msg.orientation, msg.current_distance, msg.min_distance,
+                                                msg.max_distance, msg.signal_quality, msg.type, t)
+        north = 0.2 * max(t - 3.0, 0.0)
+        if t >= 3.0:
+            assert _global(dive, 11, north, 0.0, 2.0, mask=POS_VEL_YAW, vel=(0.2, 0.0, 0.0))
+
+    poses = dive.fly(40.0, each)
+    heights = np.array([floor.depth_at(p[0], p[1]) - p[2] for p in poses[200:]])
+    assert poses[-1][0] > 5.0 and np.sqrt(np.mean((heights - 2.0) ** 2)) < 0.1, heights
+    silent[:] = [dive.t, dive.t + 3.0]
+    held = dive.fly(3.0, each)
+    assert max(p[2] for p in held) <= held[0][2] + 0.03                 # no move toward the bottom

@@ -111,3 +111,34 @@ def test_bad_terrain_legs_are_refused_in_one_line(entry, words):
     with pytest.raises(ConfigError) as error:
         mission_from_dict({**MISSION, "path": [entry]}, "m.yaml")
     assert words in str(error.value) and "\n" not in str(error.value)
+
+
+def _distance_sensor(component: int, cm: int, quality: int, orientation: int = 25):
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    msg = mavlink.MAVLink_distance_sensor_message(0, 20, 12000, cm, 1, 0, orientation, 0, 0.0, 0.0, [0.0] * 4,
+                                                  quality)
+    msg._header = mavlink.MAVLink_header(msg.id, srcSystem=1, srcComponent=component)
+    return msg
+
+
+def test_the_run_reads_the_sounders_own_readings_over_the_autopilots_copy():
+    from rov_mav.flight.state.soundings import Soundings
+
+    soundings = Soundings()
+    soundings.update(_distance_sensor(1, 200, 0), 0.0)            # the autopilot's copy, before the sounder is heard
+    soundings.update(_distance_sensor(194, 201, 100), 0.1)
+    soundings.update(_distance_sensor(1, 200, 100), 0.2)          # its slower copy, once the sounder's own is heard
+    soundings.update(_distance_sensor(194, 150, 1), 0.3)          # "invalid"
+    soundings.update(_distance_sensor(194, 150, 100, orientation=0), 0.4)   # looking forward: not a height
+    taken = soundings.take()
+    assert [(s.t, s.distance, s.quality) for s in taken] == [(0.0, 2.0, 100), (0.1, 2.01, 100), (0.3, 1.5, 0)]
+    assert soundings.take() == []
+
+
+def test_a_point_goes_to_latitude_and_longitude_and_back_on_the_same_flat_earth():
+    from rov_mav.units import lat_lon, north_east
+
+    origin = (47.6, -122.3, 0.0)
+    lat, lon = lat_lon(37.5, -12.25, origin)
+    assert north_east(lat, lon, origin) == pytest.approx((37.5, -12.25), abs=1e-9)

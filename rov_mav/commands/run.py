@@ -323,6 +323,10 @@ def _choices(args: argparse.Namespace):
     from rov_mav.model.vehicle import load_flown_vehicle
 
     mission = None if args.mission_from_vehicle else load_mission(args)
+    if mission is not None and args.controller == GUIDED_KIND and any(
+            seg.terrain is not None and seg.terrain[0] == "standoff" for seg in mission.segments):
+        raise ConfigError(f"{mission.source}: a standoff below the ice: --controller {GUIDED_KIND} has none (ArduSub's "
+                          "terrain frames are heights above the bottom); fly it with a law of ours")
     flags = LimitFlags(args.max_depth, args.max_tracking_error, args.max_thrust, args.max_tilt)
     limits = Limits() if mission is None else run_limits(mission, flags)   # set once the vehicle's is downloaded
     if mission is not None:

@@ -293,7 +293,8 @@ class ArduSub:
             if self.mode == MODES["SURFACE"] and self._nobaro:
                 axes[3] = surface.nobaro_throttle(self.params)
         elif self.mode == MODES["GUIDED"]:
-            axes = self.guided.axes(self.params.guided_gains(), *state, t, dt)
+            terrain = self.rangefinder.terrain_depth if self.rangefinder.alt_ok(t) else None
+            axes = self.guided.axes(self.params.guided_gains(), *state, t, dt, terrain_depth=terrain)
         else:
             return
         self._held = mixer.to_pwm(self._mix(axes), *self._pwm_range())
@@ -314,8 +315,11 @@ class ArduSub:
         ignored; in GUIDED a target (`sim_bridge.modes.guided`), its position from the EKF origin by the frame's
         altitude
         reference (`Location::get_vector_from_origin_NEU`): above the sea, or home (the origin here); above the
-        terrain needs terrain data this vehicle has not (no terrain database, no rangefinder), so it is dropped, as an
-        unknown frame is. False (ignored, silently, as ArduSub does) in any other mode or case."""
+        terrain (frames 10 and 11), as PR #27767 takes it (closed unmerged; ArduSub 4.7.2 drops such a target
+        underwater, having no terrain database): a position-velocity target whose altitude is the rangefinder range
+        to hold (`sim_bridge.modes.guided.Guided.terrain_target`), the first refused with "Terrain data (rangefinder)
+        not available" without a healthy rangefinder. False (ignored, silently, as ArduSub does) in any other mode
+        or case."""
         if self.mode == MODES["ALT_HOLD"] and not type_mask & guided.Z_IGNORE:
             self.holds.depth = -float(alt)
             return True
@@ -323,6 +327,13 @@ class ArduSub:
             return False
         position = None
         reference = guided.GLOBAL_FRAMES.get(frame)
+        if reference == "terrain" and self.origin is not None:
+            healthy = self.rangefinder.terrain_depth if self.rangefinder.alt_ok(self._t) else None
+            if healthy is None and self.guided.terrain_range is None and not type_mask & guided.VEL_IGNORE:
+                self.texts.append((MAV_SEVERITY_WARNING, guided.TERRAIN_REFUSAL))
+                return False
+            return self.guided.terrain_target(type_mask, north_east(lat, lon, self.origin), float(alt), velocity,
+                                              healthy, self._state, t)
         if not type_mask & guided.POS_IGNORE and self.origin is not None and reference in ("sea", "home"):
             north, east = north_east(lat, lon, self.origin)
             position = np.array([north, east, -(alt - self.origin[2] if reference == "sea" else alt)])

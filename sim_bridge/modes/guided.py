@@ -52,6 +52,7 @@ BODY_FRAMES = frozenset({FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD})
 FRAMES = frozenset({FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED}) | BODY_FRAMES
 # MAV_FRAME of SET_POSITION_TARGET_GLOBAL_INT -> the altitude's reference: the sea (AMSL), home, the terrain
 GLOBAL_FRAMES = {0: "sea", 5: "sea", 3: "home", 6: "home", 10: "terrain", 11: "terrain"}
+TERRAIN_REFUSAL = "Terrain data (rangefinder) not available"    # PR #27767, the first terrain target without one
 POS_IGNORE, VEL_IGNORE, ACC_IGNORE, YAW_IGNORE = 0x007, 0x038, 0x1C0, 0x400   # MAVLINK_SET_POS_TYPE_MASK_*
 Z_IGNORE, YAW_RATE_IGNORE = 0x004, 0x800
 POSVEL, VELOCITY, WAYPOINT = "posvel", "velocity", "waypoint"    # the sub-modes a target selects
@@ -131,6 +132,8 @@ class Guided:
         self.accel_z = Pid()
         self.rates = (Pid(), Pid(), Pid())
         self._climb: float | None = None            # cm/s, last measured climb rate
+        self.terrain_range: float | None = None     # m: a terrain target's rangefinder distance (PR #27767)
+        self.terrain_depth: float | None = None     # m: the bottom's depth it is held from, as last measured
 
     def target(self, frame: int, type_mask: int, position, velocity, yaw: float, state, t: float,
                acceleration=(0.0, 0.0, 0.0), yaw_rate: float = 0.0) -> bool:
@@ -151,6 +154,7 @@ class Guided:
         pos = None if type_mask & POS_IGNORE else rotated(position) + (eta[:3] if frame != FRAME_LOCAL_NED else 0.0)
         if not self._set(type_mask, pos, rotated(velocity), rotated(acceleration), eta, t):
             return False
+        self.terrain_range = None
         self._yaw(type_mask, yaw + (eta[5] if frame == FRAME_BODY_OFFSET_NED else 0.0), yaw_rate)
         return True
 
@@ -160,7 +164,25 @@ class Guided:
         future use). False when ArduSub would ignore it."""
         if state is None or (position is None and not type_mask & POS_IGNORE):
             return False
+        self.terrain_range = None
         return self._set(type_mask, position, np.asarray(velocity, dtype=float), np.zeros(3), state[0], t)
+
+    def terrain_target(self, type_mask: int, north_east, distance: float, velocity, terrain_depth: float | None,
+                       state, t: float) -> bool:
+        """PR #27767's ABOVE_TERRAIN position-velocity target (`guided_set_destination_posvel` with ABOVE_TERRAIN):
+        north and east from the EKF origin, `distance` the rangefinder range to hold (m), the velocity NED m/s; it
+        needs position and velocity (a position alone is ignored), and the first needs a healthy rangefinder (the
+        bottom's depth `terrain_depth`, None without one: refused). False when it is not taken."""
+        if state is None or type_mask & (POS_IGNORE | VEL_IGNORE) or type_mask & ACC_IGNORE != ACC_IGNORE:
+            return False
+        if self.terrain_range is None and terrain_depth is None:
+            return False
+        if terrain_depth is not None:
+            self.terrain_depth = terrain_depth
+        position = np.array([north_east[0], north_east[1], self.terrain_depth - distance])
+        self._set(type_mask, position, np.asarray(velocity, dtype=float), np.zeros(3), state[0], t)
+        self.terrain_range = distance
+        return True
 
     def _set(self, type_mask: int, position, velocity, acceleration, eta, t: float) -> bool:
         """The sub-mode the type_mask selects (`guided_set_destination_posvel`, `guided_set_velocity`,
@@ -190,10 +212,16 @@ class Guided:
         elif use_rate:
             self.yaw_rate = min(max(yaw_rate, -YAW_SLEW), YAW_SLEW)
 
-    def axes(self, params, eta: np.ndarray, nu: np.ndarray, t: float, dt: float) -> list[float]:
-        """The mixer's (roll, pitch, yaw, throttle, forward, lateral) in [-1, 1] for one loop of dt s at time t."""
+    def axes(self, params, eta: np.ndarray, nu: np.ndarray, t: float, dt: float,
+             terrain_depth: float | None = None) -> list[float]:
+        """The mixer's (roll, pitch, yaw, throttle, forward, lateral) in [-1, 1] for one loop of dt s at time t;
+        `terrain_depth`: the bottom's depth while the rangefinder is healthy (a terrain target follows it, and holds
+        the last one while it is not: PR #27767's `guided_posvel_terrain_control_run`)."""
         if self.position is None:
             self.position = np.array(eta[:3], dtype=float)
+        if self.terrain_range is not None and terrain_depth is not None:
+            self.terrain_depth = terrain_depth
+            self.position[2] = terrain_depth - self.terrain_range - self.velocity[2] * dt
         if self.heading is None:
             self.heading = float(eta[5])
         if t - self.updated > POSVEL_TIMEOUT and self.submode != WAYPOINT:

@@ -2,7 +2,10 @@
 ArduSub's own GUIDED mode as SET_POSITION_TARGET_LOCAL_NED (position + velocity + yaw, MAV_FRAME_LOCAL_NED; and the
 acceleration, fed forward, on ArduSub 4.7.2 and later, whose Guided_PosVelAccel takes it: an older ArduSub drops such
 a target, so it is sent only where AUTOPILOT_VERSION says the vehicle takes it) at a chosen rate of vehicle time, and
-ArduSub's position controller flies it on the vehicle's own motor outputs.
+ArduSub's position controller flies it on the vehicle's own motor outputs. On an altitude leg the target goes as
+SET_POSITION_TARGET_GLOBAL_INT at the leg's height above the terrain (MAV_FRAME_GLOBAL_TERRAIN_ALT_INT): ArduSub
+holds it from its own rangefinder (PR #27767; ArduSub 4.7.2 ignores such a target underwater, and a run on it gets
+no depth from it: say so in its report).
 
 What the runner changes on the vehicle for it: the mode (GUIDED while flying; back to MANUAL before the stop, and to
 the mode it found at the end) and arming; the outputs stay on their motor functions. It keeps holding neutral RC
@@ -50,16 +53,22 @@ class GuidedStream:
         self.sent = 0
         self.accelerations = False               # the vehicle takes acceleration targets (set once it is known)
 
-    def tick(self, t: float, reference: np.ndarray, send: bool) -> bool:
-        """At vehicle time t: send `reference` (eta_d, eta_dot_d, ...) if one is due; True if it went (or, with
-        send False, would have gone)."""
+    def tick(self, t: float, reference: np.ndarray, send: bool, height: float | None = None) -> bool:
+        """At vehicle time t: send `reference` (eta_d, eta_dot_d, ...) if one is due, or on an altitude leg
+        (`height` m above the bottom) its north and east at that height above the terrain, for ArduSub to hold
+        from its own rangefinder; True if it went (or, with send False, would have gone)."""
         if t < self._next:
             return False
         self._next = self._next + self.period if t - self._next < self.period else t + self.period
         self.last = np.array(reference, dtype=float)
         if send:
-            self.session.send_position_target(self.last[:3], self.last[6:9], self.last[5],
-                                              self.last[12:15] if self.accelerations else None)
+            if height is not None:
+                velocity = np.array([*self.last[6:8], 0.0])
+                if not self.session.send_position_target_terrain(self.last[:2], height, velocity):
+                    return False
+            else:
+                self.session.send_position_target(self.last[:3], self.last[6:9], self.last[5],
+                                                  self.last[12:15] if self.accelerations else None)
             self.sent += 1
         return True
 

@@ -31,6 +31,7 @@ from rov_mav.flight.session.vehicle_clock import RoundTrip  # noqa: E402
 from rov_mav.flight.session.stations import OverrideEcho, StationWatch  # noqa: E402
 from rov_mav.flight.session.vehicle_clock import VehicleClock  # noqa: E402
 from rov_mav.signing import UNSIGNED_RADIO, VEHICLE_HEARTBEATS, Rejections, advance, check_signature_first  # noqa: E402
+from rov_mav.units import lat_lon  # noqa: E402
 
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
@@ -39,6 +40,7 @@ HEARTBEAT_PERIOD = 1.0          # vehicle s
 MANUAL = 19                     # ArduSub custom_mode
 GUIDED = 4
 POS_VEL_YAW = 0x9C0              # SET_POSITION_TARGET type_mask: acceleration and yaw rate ignored
+POS_VEL = 0xDC0                  # ... acceleration, yaw and yaw rate ignored
 POS_VEL_ACC_YAW = 0x800          # ... only the yaw rate ignored (ArduSub 4.7.2's Guided_PosVelAccel)
 ACCEL_TARGETS_FROM = (4, 7, 2)   # the first ArduSub that takes them (PR #34298); before, such a target is dropped
 NEUTRAL = 1500
@@ -338,6 +340,21 @@ class Session:
         self._send("set_position_target_local_ned", int(self.clock.now() * 1000) & 0xFFFFFFFF, self.vehicle.sysid,
                    self.vehicle.compid, mavlink.MAV_FRAME_LOCAL_NED, mask, *map(float, position),
                    *map(float, velocity), *map(float, accel), math.remainder(float(yaw), 2 * math.pi), 0.0)
+
+    def send_position_target_terrain(self, north_east, height: float, velocity) -> bool:
+        """SET_POSITION_TARGET_GLOBAL_INT in MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: a point `north_east` m from the EKF
+        origin (GPS_GLOBAL_ORIGIN, else HOME_POSITION; ArduPilot's flat earth) `height` m above the terrain, with the
+        NED velocity (m/s); ArduSub takes it in GUIDED as a rangefinder height (PR #27767: 4.7.2 ignores it
+        underwater). False (nothing sent) without an origin."""
+        origin = self.origins.get("GPS_GLOBAL_ORIGIN") or self.origins.get("HOME_POSITION")
+        if origin is None:
+            return False
+        lat, lon = lat_lon(float(north_east[0]), float(north_east[1]),
+                           (origin.latitude * 1e-7, origin.longitude * 1e-7, 0.0))
+        self._send("set_position_target_global_int", int(self.clock.now() * 1000) & 0xFFFFFFFF, self.vehicle.sysid,
+                   self.vehicle.compid, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT, POS_VEL, round(lat * 1e7),
+                   round(lon * 1e7), float(height), *map(float, velocity), 0.0, 0.0, 0.0, 0.0, 0.0)
+        return True
 
     def firmware_version(self, timeout: float = 3.0) -> tuple[int, int, int] | None:
         """(major, minor, patch) from AUTOPILOT_VERSION's flight_sw_version (`send_autopilot_version`), asked for

@@ -7,9 +7,11 @@ invalid, else the percentage. Pure: no I/O.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 DOWN, UP = 25, 24                 # MAV_SENSOR_ORIENTATION: PITCH_270, PITCH_90
+KEPT = 1000                       # readings kept untaken (a run without altitude legs never takes them)
 
 
 @dataclass(frozen=True)
@@ -26,7 +28,7 @@ class Soundings:
     def __init__(self, autopilot_component: int = 1):
         self.autopilot_component = autopilot_component
         self.sources: set[tuple[int, int]] = set()
-        self._pending: list[Sounding] = []
+        self._pending: deque[Sounding] = deque(maxlen=KEPT)
 
     def update(self, msg, t: float) -> None:
         if msg.get_type() != "DISTANCE_SENSOR" or msg.orientation not in (DOWN, UP):
@@ -40,5 +42,6 @@ class Soundings:
         self._pending.append(Sounding(t, msg.current_distance / 100.0, quality, msg.orientation))
 
     def take(self) -> list[Sounding]:
-        out, self._pending = self._pending, []
+        out = list(self._pending)
+        self._pending.clear()
         return out
