@@ -3,7 +3,8 @@
 (`rov-mav sim-bridge --environment FILE`, or merged into a mission's environment). The log stays where it is; only
 the rebuilt profile is written. Run:
     .venv/bin/python tools/seafloor_from_log.py LOG --out FILE [--speed 0.2] [--spacing 0.2] [--sounder ping]
-e.g. with the SURFTRAK dive of ../shared/logs (MANIFEST.md): mohai-2023-10-18-09-55-06-surftrak.tlog.
+e.g. with the SURFTRAK dive among the real logs (the folder ROVMAV_REAL_LOGS names):
+    mohai-2023-10-18-09-55-06-surftrak.tlog.
 """
 
 from __future__ import annotations

@@ -1,0 +1,177 @@
+"""Measure: seafloor transects on the built-in vehicle, the controllers side by side on one bottom, current, sounder
+and navigation.
+
+For every bottom (flat, a 10 % slope, a rough 5 % slope, the bottom of a real dive: `tools/seafloor_from_log.py`'s
+profile of the real SURFTRAK dive) x current across the line (none, 0.2 m/s) x echo sounder (ideal, ping) x
+navigation (dvl, dvl+ugps) x controller (fuzzy and ismc holding the height with `rov_mav.mission.terrain`; ardusub-
+guided: ArduSub's GUIDED holding it from its own rangefinder, as PR #27767 does) x seed (the bridge's `--seed`),
+it writes a transect mission (a hold, then LENGTH m north at 0.2 m/s, ALTITUDE m above the bottom), starts `rov-mav
+run --target` against a `rov-mav sim-bridge` process on its own link, with a checker station on a second link
+recording SERVO_OUTPUT_RAW for the thrusters' activity, and prints a markdown table of the means over the seeds: the
+height error RMS against the true bottom (SimHeight) and its max, against the sounder, the cross-track RMS of the
+estimate flown on and of the truth, the speed along the line off the plan, strikes under 0.3 m, activity, runs
+completed and end states. Not yet a row: SURFTRAK with a pilot's forward thrust. Run:
+    .venv/bin/python tools/transect_table.py [--bottoms flat,slope,rough,real] [--currents 0,0.2] [--sounders ping]
+        [--navigation dvl] [--controllers fuzzy,ardusub-guided] [--seeds 1] [--length 20] [--speedup 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from link_faults import ROV_MAV, RUN_WAIT, free_port, runner_calling, stop  # noqa: E402
+from navigation_table import OutputRecorder, _stop_reason  # noqa: E402
+from vehicle_faults import mission_start  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from rov_mav.model.seafloor import parse_surface  # noqa: E402
+from rov_mav.review.analysis import bottom_profile  # noqa: E402
+from rov_mav.review.dive_review import read_dive  # noqa: E402
+
+ALTITUDE = 1.0                   # m above the bottom
+SPEED = 0.2                      # m/s along the line
+REAL_LOG = "mohai-2023-10-18-09-55-06-surftrak.tlog"
+BOTTOMS = {"flat": {"depth": 10.0}, "slope": {"depth": 10.0, "slope": 0.1},
+           "rough": {"depth": 10.0, "slope": 0.05, "relief": 0.1, "wavelength": 3.0, "seed": 1}}
+CONTROLLERS = {"fuzzy": ["--controller", "fuzzy"], "ismc": ["--controller", "ismc"],
+               "ardusub-guided": ["--controller", "ardusub-guided"]}
+
+
+def real_bottom(logs: Path) -> dict:
+    """The SURFTRAK dive's bottom, its soundings laid along the line at the transect's speed."""
+    _, dive = read_dive(logs / REAL_LOG)
+    profile = bottom_profile(dive, SPEED, 0.2)
+    return {"profile": [[round(float(a), 3), round(float(b), 3)] for a, b in profile]}
+
+
+def transect(folder: Path, bottom: dict, current: float, sounder: str, navigation: str, length: float) -> Path:
+    start_depth = parse_surface(bottom, "seafloor").depth_at(0.0, 0.0) - ALTITUDE
+    mission = {"name": "transect", "start": {"position": [0.0, 0.0, round(start_depth, 3)], "heading": 0.0},
+               "ramp_time": 3.0,
+               "path": [{"hold": 8.0, "altitude": ALTITUDE}, {"goto": [length, 0.0], "altitude": ALTITUDE,
+                                                                 "speed": SPEED}, {"hold": 3.0, "altitude": ALTITUDE}],
+               "environment": {"current": [0.0, current, 0.0], "seafloor": bottom,
+                               "navigation": {"preset": navigation, "echo_sounder": sounder}},
+               "limits": {"max_depth": 20.0, "max_tracking_error": 3.0, "max_thrust": 40.0}}
+    path = folder / "transect.yaml"
+    path.write_text(yaml.safe_dump(mission))
+    return path
+
+
+def fly(mission: Path, controller: str, seed: int, args, folder: Path) -> dict:
+    port, checker_port = free_port(), free_port()
+    log, metrics = folder / "log", folder / "metrics.json"
+    start_depth = yaml.safe_load(mission.read_text())["start"]["position"][2]
+    runner = subprocess.Popen([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission), "--log", str(log),
+                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120",
+                               *CONTROLLERS[controller]], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    bridge = recorder = None
+    end, output = "?", ""
+    try:
+        runner_calling(port)
+        bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
+                                   f"udpin:127.0.0.1:{checker_port}", "--speedup", str(args.speedup), "--environment",
+                                   str(mission), "--seed", str(seed), "--start-depth", str(start_depth)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        recorder = OutputRecorder(checker_port)
+        output = runner.communicate(timeout=RUN_WAIT)[0]
+        recorder.finish()
+        end = recorder.end_state()
+    finally:
+        if runner.poll() is None:
+            output = stop(runner)
+        if recorder is not None:
+            recorder.finish()
+            recorder.close()
+        if bridge is not None:
+            stop(bridge)
+    m = json.loads(metrics.read_text()) if metrics.exists() else None
+    if m is None or m["duration_s"] <= 0.0 or not m.get("terrain"):
+        return {"code": runner.returncode, "output": output, "end": end}
+    t0 = mission_start(log / "ticks.csv")
+    return {"code": runner.returncode, "completed": m["completed"], **m["terrain"],
+            "activity": recorder.activity(t0, t0 + m["duration_s"]), "end": end, "output": output}
+
+
+def _mean(results: list[dict], key: str, scale: float = 100.0) -> float:
+    values = [r[key] for r in results if r.get(key) is not None and not math.isnan(r[key])]
+    return float(np.mean(values)) * scale if values else math.nan
+
+
+def _row(cells: list[str], results: list[dict]) -> str:
+    done = sum(bool(r.get("completed")) and r["code"] == 0 for r in results)
+    worst = max((r.get("max_height_error_true_m") or math.nan) for r in results) * 100
+    return ("| " + " | ".join(cells) + f" | {_mean(results, 'rms_height_error_true_m'):.1f} | {worst:.1f} | "
+            f"{_mean(results, 'rms_height_error_sounder_m'):.1f} | {_mean(results, 'rms_cross_track_m'):.1f} / "
+            f"{_mean(results, 'rms_cross_track_true_m'):.1f} | {_mean(results, 'rms_speed_error_m_s'):.1f} | "
+            f"{sum(r.get('strikes', 0) for r in results)} | {_mean(results, 'activity', 1.0):.0f} | "
+            f"{done}/{len(results)} | {'; '.join(sorted({r['end'] for r in results}))} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--bottoms", default="flat,slope,rough,real")
+    parser.add_argument("--currents", default="0,0.2", help="m/s across the line")
+    parser.add_argument("--sounders", default="ping", help="ideal, ping")
+    parser.add_argument("--navigation", default="dvl", help="the built-in vehicle's: dvl, dvl+ugps, ...")
+    parser.add_argument("--controllers", default="fuzzy,ardusub-guided", help=f"of {', '.join(CONTROLLERS)}")
+    parser.add_argument("--seeds", default="1")
+    parser.add_argument("--length", type=float, default=20.0, help="m of the line (default 20)")
+    parser.add_argument("--speedup", type=float, default=5.0)
+    parser.add_argument("--logs", type=Path, default=os.environ.get("ROVMAV_REAL_LOGS"),
+                        help="the real logs' folder (default: ROVMAV_REAL_LOGS), for the real bottom")
+    parser.add_argument("--keep", type=Path, help="keep every run's log and output in this folder")
+    args = parser.parse_args()
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    if "real" in args.bottoms.split(",") and args.logs is None:
+        parser.error("the real bottom needs the real logs: --logs DIR or ROVMAV_REAL_LOGS")
+    bottoms = {name: BOTTOMS[name] if name != "real" else real_bottom(Path(args.logs))
+               for name in args.bottoms.split(",")}
+    seeds = [int(s) for s in args.seeds.split(",")]
+    print(f"transects of {args.length:g} m at {SPEED:g} m/s, {ALTITUDE:g} m above the bottom; bridge --speedup "
+          f"{args.speedup:g}, seeds {args.seeds}; load average before: {os.getloadavg()[0]:.1f}", flush=True)
+    print("| bottom | current (m/s) | sounder | navigation | controller | height RMS vs true (cm) | max vs true (cm) | "
+          "height RMS vs sounder (cm) | cross-track RMS est / true (cm) | speed RMS (cm/s) | strikes | activity "
+          "(us/s) | completed | end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
+    notes: list[str] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        for bottom, surface in bottoms.items():
+            for current in (float(c) for c in args.currents.split(",")):
+                for sounder in args.sounders.split(","):
+                    for navigation in args.navigation.split(","):
+                        for controller in args.controllers.split(","):
+                            results = []
+                            for seed in seeds:
+                                where = folder / f"{bottom}-{current:g}-{sounder}-{navigation}-{controller}-{seed}"
+                                where.mkdir(parents=True, exist_ok=True)
+                                mission = transect(where, surface, current, sounder, navigation, args.length)
+                                result = fly(mission, controller, seed, args, where)
+                                output = result.pop("output")
+                                (where / "run.txt").write_text(output)
+                                results.append(result)
+                                if not (result.get("completed") and result["code"] == 0):
+                                    notes.append(f"{bottom} {current:g} {sounder} {navigation} {controller} seed "
+                                                 f"{seed}: exit {result['code']}, {_stop_reason(output)}")
+                            print(_row([bottom, f"{current:g}", sounder, navigation, controller], results),
+                                  flush=True)
+    print(f"load average after: {os.getloadavg()[0]:.1f}")
+    for note in notes:
+        print(f"not completed: {note}")
+
+
+if __name__ == "__main__":
+    main()
