@@ -61,3 +61,19 @@ def test_no_test_file_imports_another():
             if any(name.split(".")[0].startswith("test_") for name in names):
                 importing[path.name] = names
     assert not importing, f"test files importing a test file (move the helpers to a *_helpers module): {importing}"
+
+
+MAX_COMMAND_FUNCTION = 60        # lines: a command reads as parse, build, fly, report; the assembly lives elsewhere
+
+
+def test_no_function_of_the_commands_is_longer_than_a_screen():
+    import ast
+
+    long = []
+    for path in sorted((ROOT / "rov_mav" / "commands").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_COMMAND_FUNCTION:
+                    long.append(f"{path.name}:{node.lineno} {node.name} ({lines} lines)")
+    assert not long, f"functions in rov_mav/commands over {MAX_COMMAND_FUNCTION} lines: {long}"
