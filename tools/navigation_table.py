@@ -85,21 +85,24 @@ class OutputRecorder(Checker):
         return pwm_activity(np.array([t for t, _ in rows]), np.array([p for _, p in rows], dtype=float))
 
 
-def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path) -> dict:
+def fly_with_checker(mission: Path, run_options: list[str], bridge_options: list[str], speedup: float,
+                     folder: Path) -> tuple[int, str, str, OutputRecorder | None, dict | None]:
+    """`rov-mav run --target` of `mission` with `run_options` against a `rov-mav sim-bridge` process (its
+    environment the mission's, with `bridge_options`) on its own link, and the output recorder on a second link of
+    the vehicle: (exit code, the run's output, the end state, the recorder, metrics.json or None). The log and the
+    metrics go to `folder`."""
     port, checker_port = free_port(), free_port()
     log, metrics = folder / "log", folder / "metrics.json"
     runner = subprocess.Popen([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission), "--log", str(log),
-                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120", *ROWS[row],
-                               *args.run_args.split()],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120",
+                               *run_options], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     bridge = recorder = None
     end, output = "?", ""
     try:
         runner_calling(port)
         bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
-                                   f"udpin:127.0.0.1:{checker_port}", "--speedup", str(args.speedup), "--environment",
-                                   str(mission), "--navigation", navigation, "--seed", str(seed), "--start-depth",
-                                   str(START_DEPTH.get(mission.stem, 1.0))],
+                                   f"udpin:127.0.0.1:{checker_port}", "--speedup", str(speedup), "--environment",
+                                   str(mission), *bridge_options],
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         recorder = OutputRecorder(checker_port)
         output = runner.communicate(timeout=RUN_WAIT)[0]
@@ -113,11 +116,18 @@ def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path)
             recorder.close()
         if bridge is not None:
             stop(bridge)
-    m = json.loads(metrics.read_text()) if metrics.exists() else None
+    return runner.returncode, output, end, recorder, json.loads(metrics.read_text()) if metrics.exists() else None
+
+
+def fly(mission: Path, navigation: str, row: str, seed: int, args, folder: Path) -> dict:
+    code, output, end, recorder, m = fly_with_checker(
+        mission, [*ROWS[row], *args.run_args.split()],
+        ["--navigation", navigation, "--seed", str(seed), "--start-depth", str(START_DEPTH.get(mission.stem, 1.0))],
+        args.speedup, folder)
     if m is None or m["duration_s"] <= 0.0:      # stopped before the mission began (in its lead-in, or earlier)
-        return {"code": runner.returncode, "output": output, "end": end}
-    t0, duration = mission_start(log / "ticks.csv"), m["duration_s"]
-    return {"code": runner.returncode, "completed": m["completed"], "truth": m.get("rms_position_error_truth_m"),
+        return {"code": code, "output": output, "end": end}
+    t0, duration = mission_start(folder / "log" / "ticks.csv"), m["duration_s"]
+    return {"code": code, "completed": m["completed"], "truth": m.get("rms_position_error_truth_m"),
             "truth_max": m.get("max_position_error_truth_m"), "estimate": m["rms_position_error_m"],
             "own": m.get("rms_estimate_error_truth_m"), "vehicle": m.get("rms_vehicle_estimate_error_truth_m"),
             "heading": m["rms_attitude_error_rad"], "rate": m["loop"]["control_rate_hz"],

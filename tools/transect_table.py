@@ -18,11 +18,9 @@ completed and end states. Not yet a row: SURFTRAK with a pilot's forward thrust.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import signal
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -31,8 +29,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from link_faults import ROV_MAV, RUN_WAIT, free_port, runner_calling, stop  # noqa: E402
-from navigation_table import OutputRecorder, _stop_reason  # noqa: E402
+from navigation_table import _stop_reason, fly_with_checker  # noqa: E402
 from vehicle_faults import mission_start  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,37 +69,14 @@ def transect(folder: Path, bottom: dict, current: float, sounder: str, navigatio
 
 
 def fly(mission: Path, controller: str, seed: int, args, folder: Path) -> dict:
-    port, checker_port = free_port(), free_port()
-    log, metrics = folder / "log", folder / "metrics.json"
     start_depth = yaml.safe_load(mission.read_text())["start"]["position"][2]
-    runner = subprocess.Popen([ROV_MAV, "run", "--target", f"udpout:127.0.0.1:{port}", str(mission), "--log", str(log),
-                               "--metrics", str(metrics), "--rerun", "off", "--heartbeat-timeout", "120",
-                               *CONTROLLERS[controller]], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    bridge = recorder = None
-    end, output = "?", ""
-    try:
-        runner_calling(port)
-        bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
-                                   f"udpin:127.0.0.1:{checker_port}", "--speedup", str(args.speedup), "--environment",
-                                   str(mission), "--seed", str(seed), "--start-depth", str(start_depth)],
-                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        recorder = OutputRecorder(checker_port)
-        output = runner.communicate(timeout=RUN_WAIT)[0]
-        recorder.finish()
-        end = recorder.end_state()
-    finally:
-        if runner.poll() is None:
-            output = stop(runner)
-        if recorder is not None:
-            recorder.finish()
-            recorder.close()
-        if bridge is not None:
-            stop(bridge)
-    m = json.loads(metrics.read_text()) if metrics.exists() else None
+    code, output, end, recorder, m = fly_with_checker(
+        mission, CONTROLLERS[controller], ["--seed", str(seed), "--start-depth", str(start_depth)], args.speedup,
+        folder)
     if m is None or m["duration_s"] <= 0.0 or not m.get("terrain"):
-        return {"code": runner.returncode, "output": output, "end": end}
-    t0 = mission_start(log / "ticks.csv")
-    return {"code": runner.returncode, "completed": m["completed"], **m["terrain"],
+        return {"code": code, "output": output, "end": end}
+    t0 = mission_start(folder / "log" / "ticks.csv")
+    return {"code": code, "completed": m["completed"], **m["terrain"],
             "activity": recorder.activity(t0, t0 + m["duration_s"]), "end": end, "output": output}
 
 
