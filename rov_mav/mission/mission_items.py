@@ -5,9 +5,9 @@ is the water's surface, so d m below the surface is an altitude of -d m. ArduSub
 (altitude > 0: "BAD NAV ALT") and any altitude frame but relative-to-home (MAV_FRAME_GLOBAL_RELATIVE_ALT, or its
 _INT twin: "BAD NAV AltFrame") or, since PR #26450 (4.5 on), above the terrain (MAV_FRAME_GLOBAL_TERRAIN_ALT, _INT:
 a height above the bottom its rangefinder sees); so do we, before anything moves. A terrain-frame item becomes an
-altitude leg (`rov_mav.mission.terrain`): planned at the depth before it, its depth made from the echo sounder. `Sub::do_nav_wp`: latitude and longitude both 0
-mean "where the vehicle is" (here: the previous waypoint), altitude 0 "at the current depth" (the previous
-waypoint's); param1 is the time to hold at the waypoint, s.
+altitude leg (`rov_mav.mission.terrain`): planned at the depth before it, its depth made from the echo sounder.
+`Sub::do_nav_wp`: latitude and longitude both 0 mean "where the vehicle is" (here: the previous waypoint), altitude
+0 "at the current depth" (the previous waypoint's); param1 is the time to hold at the waypoint, s.
 
 Flown: NAV_WAYPOINT (a goto, then its hold), NAV_LOITER_TIME (the same: `Sub::do_loiter_time`), DO_CHANGE_SPEED
 (param2 > 0 m/s is the speed of the legs after it: `Sub::do_change_speed`). Anything else (takeoff, land, return to

@@ -20,7 +20,6 @@ from rov_mav import config
 from rov_mav.units import Angle
 
 RELIEF_WAVES = 24                 # plane waves summed for the relief (chosen: isotropic enough, cheap per ray)
-NonNegative = Annotated[float, Field(ge=0)]
 Slope = Annotated[float, Field(ge=-1, le=1)]       # rise per m: beyond 45 degrees no sounder sees a bottom
 
 
@@ -60,6 +59,7 @@ class Surface:
     wavelength: float = 3.0
     seed: int = 0
     _waves: np.ndarray = field(init=False, repr=False, compare=False)
+    _profile: np.ndarray = field(init=False, repr=False, compare=False)     # (K, 2) of `profile`, once
 
     def __post_init__(self):
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 40]))
@@ -69,6 +69,7 @@ class Surface:
         amplitude = np.full(RELIEF_WAVES, self.relief * np.sqrt(2.0 / RELIEF_WAVES))   # RMS of the sum: relief
         waves = np.stack([wavenumber * np.cos(direction), wavenumber * np.sin(direction), phase, amplitude])
         object.__setattr__(self, "_waves", waves)
+        object.__setattr__(self, "_profile", np.asarray(self.profile, dtype=float).reshape(-1, 2))
 
     @classmethod
     def from_schema(cls, s: SurfaceSchema) -> "Surface":
@@ -84,8 +85,7 @@ class Surface:
         """The surface's depth (m, positive down) at north, east (m from the origin; numbers or arrays)."""
         s = self.along(north, east)
         if self.profile:
-            points = np.asarray(self.profile)
-            base = np.interp(s, points[:, 0], points[:, 1])
+            base = np.interp(s, self._profile[:, 0], self._profile[:, 1])
         else:
             base = self.depth - self.slope * s
         for at, rise in self.steps:

@@ -328,12 +328,13 @@ class ArduSub:
         position = None
         reference = guided.GLOBAL_FRAMES.get(frame)
         if reference == "terrain" and self.origin is not None:
-            healthy = self.rangefinder.terrain_depth if self.rangefinder.alt_ok(self._t) else None
-            if healthy is None and self.guided.terrain_range is None and not type_mask & guided.VEL_IGNORE:
+            if not guided.takes_terrain(type_mask):
+                return False
+            if self.guided.terrain_range is None and not self.rangefinder.alt_ok(self._t):
                 self.texts.append((MAV_SEVERITY_WARNING, guided.TERRAIN_REFUSAL))
                 return False
             return self.guided.terrain_target(type_mask, north_east(lat, lon, self.origin), float(alt), velocity,
-                                              healthy, self._state, t)
+                                              self.rangefinder.terrain_depth, self._state, t)
         if not type_mask & guided.POS_IGNORE and self.origin is not None and reference in ("sea", "home"):
             north, east = north_east(lat, lon, self.origin)
             position = np.array([north, east, -(alt - self.origin[2] if reference == "sea" else alt)])

@@ -79,6 +79,12 @@ def sqrt_controller(error: float, p: float, accel_max: float, dt: float) -> floa
     return correction
 
 
+def takes_terrain(type_mask: int) -> bool:
+    """A terrain target's type_mask PR #27767 takes: position and velocity used, the acceleration ignored (a
+    position alone, or an acceleration, and it is dropped)."""
+    return not type_mask & (POS_IGNORE | VEL_IGNORE) and type_mask & ACC_IGNORE == ACC_IGNORE
+
+
 def _alpha(hz: float, dt: float) -> float:
     """A first-order low-pass filter's step gain at cut-off `hz` (0: no filter), as AC_PID's `get_filt_alpha`."""
     return 1.0 if hz <= 0 else dt / (dt + 1.0 / (2.0 * math.pi * hz))
@@ -133,7 +139,6 @@ class Guided:
         self.rates = (Pid(), Pid(), Pid())
         self._climb: float | None = None            # cm/s, last measured climb rate
         self.terrain_range: float | None = None     # m: a terrain target's rangefinder distance (PR #27767)
-        self.terrain_depth: float | None = None     # m: the bottom's depth it is held from, as last measured
 
     def target(self, frame: int, type_mask: int, position, velocity, yaw: float, state, t: float,
                acceleration=(0.0, 0.0, 0.0), yaw_rate: float = 0.0) -> bool:
@@ -167,19 +172,15 @@ class Guided:
         self.terrain_range = None
         return self._set(type_mask, position, np.asarray(velocity, dtype=float), np.zeros(3), state[0], t)
 
-    def terrain_target(self, type_mask: int, north_east, distance: float, velocity, terrain_depth: float | None,
+    def terrain_target(self, type_mask: int, north_east, distance: float, velocity, terrain_depth: float,
                        state, t: float) -> bool:
         """PR #27767's ABOVE_TERRAIN position-velocity target (`guided_set_destination_posvel` with ABOVE_TERRAIN):
-        north and east from the EKF origin, `distance` the rangefinder range to hold (m), the velocity NED m/s; it
-        needs position and velocity (a position alone is ignored), and the first needs a healthy rangefinder (the
-        bottom's depth `terrain_depth`, None without one: refused). False when it is not taken."""
-        if state is None or type_mask & (POS_IGNORE | VEL_IGNORE) or type_mask & ACC_IGNORE != ACC_IGNORE:
+        north and east from the EKF origin, `distance` the rangefinder range to hold (m) from the bottom's depth as
+        the rangefinder last measured it, the velocity NED m/s; its type_mask as `takes_terrain` says (the caller
+        refuses the first without a healthy rangefinder). False when it is not taken."""
+        if state is None or not takes_terrain(type_mask):
             return False
-        if self.terrain_range is None and terrain_depth is None:
-            return False
-        if terrain_depth is not None:
-            self.terrain_depth = terrain_depth
-        position = np.array([north_east[0], north_east[1], self.terrain_depth - distance])
+        position = np.array([north_east[0], north_east[1], terrain_depth - distance])
         self._set(type_mask, position, np.asarray(velocity, dtype=float), np.zeros(3), state[0], t)
         self.terrain_range = distance
         return True
@@ -220,7 +221,6 @@ class Guided:
         if self.position is None:
             self.position = np.array(eta[:3], dtype=float)
         if self.terrain_range is not None and terrain_depth is not None:
-            self.terrain_depth = terrain_depth
             self.position[2] = terrain_depth - self.terrain_range - self.velocity[2] * dt
         if self.heading is None:
             self.heading = float(eta[5])

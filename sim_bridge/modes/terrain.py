@@ -37,16 +37,17 @@ import math
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.modes.stabilize import DEAD_ZONE
+
 NOT_CONNECTED, NO_DATA, OUT_OF_RANGE_LOW, OUT_OF_RANGE_HIGH, GOOD = 0, 1, 2, 3, 4   # RangeFinder::Status
 MAVLINK_TYPE = 10                      # RNGFND1_TYPE: MAVLink
-DOWN = 25                              # ROTATION_PITCH_270
+DOWN = mavlink.MAV_SENSOR_ROTATION_PITCH_270                      # 25
 TIMEOUT = 0.5                          # s: AP_RANGEFINDER_MAVLINK_TIMEOUT_MS
 READ_PERIOD = 0.05                     # s: Sub::read_rangefinder at 20 Hz
 HEALTH_COUNT = 3                       # RANGEFINDER_HEALTH_MAX
 VALID_MAX = 10                         # range_valid_count's cap
 FILTER_HZ = 0.25                       # RANGEFINDER_WPNAV_FILT_HZ
 HEALTH_TIMEOUT = 1.0                   # s: RANGEFINDER_TIMEOUT_MS
-THROTTLE_DEAD_ZONE = 0.05              # of the stick: ALT_HOLD's centred throttle (`stabilize.DEAD_ZONE`)
 
 
 class Rangefinder:
@@ -161,7 +162,7 @@ class Surftrak:
     def run(self, holds, throttle: float, depth: float, at_surface: bool, rangefinder: Rangefinder, t: float,
             dt: float, params, texts: list) -> None:
         """`ModeSurftrak::control_range` for one loop: sets `holds.depth` (the depth target ALT_HOLD flies)."""
-        if abs(throttle) > THROTTLE_DEAD_ZONE:
+        if abs(throttle) > DEAD_ZONE:                  # ALT_HOLD's centred throttle
             if self.target is not None and self._pilot_start is None:
                 self._pilot_start = depth
             return

@@ -31,6 +31,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from rov_mav import config
 from rov_mav.model.dynamics import attitude_rotation
@@ -40,10 +41,9 @@ from sim_bridge.gcs.telemetry import ENCODER
 
 SECTION = "echo_sounder"
 SOURCE = (1, 194)                      # (sysid, compid) of BlueOS's Ping service
-DOWN, UP = 25, 24                      # MAV_SENSOR_ORIENTATION: PITCH_270, PITCH_90
+DOWN, UP = mavlink.MAV_SENSOR_ROTATION_PITCH_270, mavlink.MAV_SENSOR_ROTATION_PITCH_90   # 25, 24
 SENT_MIN_CM, SENT_MAX_CM = 20, 12000   # the service's fixed min_distance and max_distance
 FOV = 0.52                             # rad: the service's horizontal and vertical fov
-ULTRASOUND = 1                         # MAV_DISTANCE_SENSOR
 FIXED_POINT = 12                       # iterations of the beam's intersection with a surface
 Rate = Annotated[float, Field(gt=0, le=50)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -194,7 +194,8 @@ class EchoSounder:
     def messages(self, sounding: Sounding, time_boot_ms: int) -> list:
         """The Ping service's DISTANCE_SENSOR of a sounding, with its (sysid, compid)."""
         msg = ENCODER.distance_sensor_encode(time_boot_ms & 0xFFFFFFFF, SENT_MIN_CM, SENT_MAX_CM,
-                                             min(round(sounding.distance * 100), 65535), ULTRASOUND, 1,
+                                             min(round(sounding.distance * 100), 65535),
+                                             mavlink.MAV_DISTANCE_SENSOR_ULTRASOUND, 1,
                                              sounding.orientation, 255, FOV, FOV, [0.0, 0.0, 0.0, 0.0],
                                              max(1, sounding.confidence))
         return [(msg, SOURCE)]

@@ -85,10 +85,10 @@ class FlightLoop:
         self._position_reported = False          # EKF_STATUS_REPORT has shown a horizontal position
         self._position_lost_at: float | None = None   # vehicle s since when it has shown none
         self.log = History(t=1, eta=6, eta_d=6, tau=6, tau_hat=6, truth=3, reported=3, heights=3)
-        self._sounded = np.nan                   # m: GUIDED on an altitude leg, the sounder's last good reading
-        # altitude legs: the depth made here for the law, or (GUIDED) ArduSub's own, from its rangefinder
+        # altitude legs: the soundings taken in for the figures, and the depth made from them for the law (GUIDED:
+        # ArduSub makes its own, from its rangefinder)
         self.terrain = TerrainFollowing(mission, VerticalLimits(max_depth=io.options.limits.max_depth), io.say) \
-            if mission.follows_terrain and not isinstance(output, Guided) else None
+            if mission.follows_terrain else None
         self.loop = History(tick_time=1, latency_ms=1, horizon_ms=1, pwm=8)
         if controller is not None and io.options.estimator == MODEL:
             io.own = OwnNavigation(controller.model)     # started by a navigation source's first measurement
@@ -289,7 +289,8 @@ class FlightLoop:
         reference = self._reference(t)
         if self.terrain is not None:
             self.terrain.observe(io.soundings.take(), float(state.eta[2]))
-            reference = self.terrain.shape(t, state.t, reference, dt)
+            if not isinstance(self.output, Guided):
+                reference = self.terrain.shape(t, state.t, reference, dt)
         horizon = 0.0
         if isinstance(self.output, Guided):
             out, thrusts = self.output.stream.output, np.full(CHANNELS, np.nan)
@@ -357,22 +358,16 @@ class FlightLoop:
         return self.terrain.ahead(reference, horizon) if self.terrain is not None else reference
 
     def _heights(self, t: float, vehicle_t: float) -> dict:
-        """The tick's height fields on an altitude or standoff leg (the sounder's, the truth's, the surface's, the
-        leg's own); none elsewhere. In GUIDED (ArduSub holding the height) the sounder's last good reading."""
-        if self.terrain is None and self.mission.follows_terrain:
-            for sounding in self.io.soundings.take():
-                if sounding.quality > 0:
-                    self._sounded = sounding.distance
-        leg = self.mission.terrain(t) if self.mission.follows_terrain and t >= 0 else None
+        """The tick's height fields on an altitude or standoff leg (the sounding taken in, the truth's, the surface's
+        estimate, the leg's own); none elsewhere."""
+        leg = self.mission.terrain(t) if self.terrain is not None and t >= 0 else None
         if leg is None:
             return {}
         truth = self.io.truth
         true = truth.ice_gap if leg[0] == "standoff" else truth.height
         fresh = truth.height_t is not None and abs(truth.height_t - vehicle_t) <= TRUTH_AGE
-        following = self.terrain is not None
-        return {"height": self.terrain.height if following else self._sounded,
-                "height_true": true if true is not None and fresh else np.nan,
-                "surface": self.terrain.surface if following else np.nan, "height_target": leg[1]}
+        return {"height": self.terrain.height, "height_true": true if true is not None and fresh else np.nan,
+                "surface": self.terrain.surface, "height_target": leg[1]}
 
     def _eased(self, tau: np.ndarray) -> np.ndarray:
         """The law's wrench, eased in from the one held during a stall over RESUME_RAMP vehicle s after it: the

@@ -10,7 +10,9 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-DOWN, UP = 25, 24                 # MAV_SENSOR_ORIENTATION: PITCH_270, PITCH_90
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+DOWN, UP = mavlink.MAV_SENSOR_ROTATION_PITCH_270, mavlink.MAV_SENSOR_ROTATION_PITCH_90   # 25, 24
 KEPT = 1000                       # readings kept untaken (a run without altitude legs never takes them)
 
 
