@@ -345,3 +345,17 @@ def test_the_surftrak_dives_bottom_is_rebuilt_as_an_independent_reader_sees_it(t
     theirs = np.array([expected[k] for k in sorted(expected)])
     assert np.abs(profile[:, 1] - theirs).max() < 0.01
     assert 7.0 < profile[:, 1].min() < profile[:, 1].max() < 10.7
+
+
+@pytest.mark.parametrize("name", [n for n in LOGS if n.endswith(".tlog")])
+def test_the_rangefinder_is_the_down_looking_sounders_good_readings_as_pymavlink_reads_them(reviews, name):
+    """Every DISTANCE_SENSOR facing down within its range and not flagged invalid, from the vehicle's system; the
+    autopilot's RANGEFINDER (a copy of the same sounder, without its status) is not counted beside them
+    (mohai-2023-10-18-10-44-55.tlog holds both: counted together they were 670 readings too many)."""
+    m = mavutil.mavlink_connection(str(Path(FOLDER) / name), robust_parsing=True)
+    good = 0
+    while (msg := m.recv_match(type="DISTANCE_SENSOR")) is not None:
+        good += (msg.get_srcSystem() == 1 and msg.orientation == 25 and msg.signal_quality != 1
+                 and msg.min_distance <= msg.current_distance <= msg.max_distance)
+    rangefinder = reviews[name]["sensors"].get("rangefinder")
+    assert (rangefinder["samples"] if rangefinder else 0) == good

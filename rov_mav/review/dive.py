@@ -1,8 +1,9 @@
 """A dive as its telemetry log tells it: the vehicle's state decoded as the runner decodes the live link
 (`StateDecoder`), its outputs, battery, arming and modes, texts, parameters, the commands stations sent it, and the
 mission it held (MISSION_ITEM_INT traffic either way); and, position or not, what its own sensors said: attitude
-and heading (ATTITUDE), the Bar30's pressure (SCALED_PRESSURE2), the rangefinder (DISTANCE_SENSOR facing down,
-RANGEFINDER) - most BlueROV2s have no position source, and their logs no LOCAL_POSITION_NED.
+and heading (ATTITUDE), the Bar30's pressure (SCALED_PRESSURE2), the rangefinder (DISTANCE_SENSOR facing down; the
+autopilot's RANGEFINDER only in a log without one: it is a copy of the same sounder without its status, out-of-range
+readings included) - most BlueROV2s have no position source, and their logs no LOCAL_POSITION_NED.
 
 `DiveRecorder.take(wall, msg)` for every message in log order, then `finish()`. The vehicle is the first system
 that sends a vehicle's HEARTBEAT (or state telemetry); what arrives before it is known is held and replayed.
@@ -88,6 +89,7 @@ class DiveRecorder:
         self._pressure = History(wall=1, abs=1)
         self._altitude = History(wall=1, m=1)
         self._range = History(wall=1, m=1)
+        self._range_copy = History(wall=1, m=1)   # RANGEFINDER: used only without a DISTANCE_SENSOR
         self._nav = History(wall=1, targets=4)
         self.vehicle: tuple[int, int] | None = None
         self.vehicle_type: int | None = None
@@ -129,6 +131,7 @@ class DiveRecorder:
         """The dive so far (messages still held, from no vehicle that identified itself, are left out)."""
         self._close_mission()
         order = np.argsort(self._clock.column("wall"), kind="stable")
+        ranges = self._range if self._range.size else self._range_copy
         return Dive(
             vehicle=self.vehicle, vehicle_type=self.vehicle_type,
             state_t=self._states.column("t"), state_wall=self._states.column("wall"),
@@ -150,7 +153,7 @@ class DiveRecorder:
             attitude_wall=self._attitude.column("wall"), attitude=self._attitude.column("rpy"),
             pressure_wall=self._pressure.column("wall"), pressure_abs=self._pressure.column("abs"),
             altitude_wall=self._altitude.column("wall"), altitude=self._altitude.column("m"),
-            range_wall=self._range.column("wall"), range_m=self._range.column("m"),
+            range_wall=ranges.column("wall"), range_m=ranges.column("m"),
             targets=controller_tracking.telemetry_errors(self._nav.column("wall"), self._nav.column("targets"),
                                                          self._attitude.column("wall"), self._attitude.column("rpy")))
 
@@ -205,7 +208,7 @@ class DiveRecorder:
         elif kind == "DISTANCE_SENSOR":
             self._rangefinder(wall, msg)
         elif kind == "RANGEFINDER":
-            self._range.append(wall=wall, m=msg.distance)
+            self._range_copy.append(wall=wall, m=msg.distance)
         elif kind == "NAV_CONTROLLER_OUTPUT":              # ArduSub's attitude targets and altitude error
             self._nav.append(wall=wall, targets=[msg.nav_roll, msg.nav_pitch, msg.nav_bearing, msg.alt_error])
         elif kind == "SERVO_OUTPUT_RAW":
