@@ -47,6 +47,14 @@ DISARM_WORDS = 5.0               # vehicle s: its texts this recent are quoted w
 PILOT_INPUT_LOST = "Lost manual control"   # `Sub::failsafe_pilot_input_check` (ArduSub/failsafe.cpp)
 
 
+
+def command_period(telemetry_period: float) -> float:
+    """Vehicle s between commands when the state is predicted: a telemetry period, at most 1 / COMMAND_RATE. The
+    prediction's command history is kept at this resolution too: slots of a slow link's period would smear each
+    command's instant over 200 ms at --rate 5 (the yaw then rang at the samples' Nyquist rate)."""
+    return min(telemetry_period, 1.0 / COMMAND_RATE)
+
+
 class FlightLoop:
     """`fly()` until the mission is complete (or an Abort); its logs and counts for the run's result."""
 
@@ -61,8 +69,9 @@ class FlightLoop:
         self.true_disturbance = true_disturbance
         self.options = io.options
         self.period = io.options.period
-        self.predictor = StatePredictor(controller.model, self.period) \
-            if controller is not None and io.options.predict else None
+        self.command_period = command_period(self.period) if controller is not None and io.options.predict else None
+        self.predictor = StatePredictor(controller.model, self.command_period) \
+            if self.command_period is not None else None
         self.thrusters = ThrusterWatch(controller.model, actuation, self.period, io.say) \
             if controller is not None and io.options.thruster_check and not io.options.dry_run else None
         self.last_command: list[int] | None = None    # the last flight PWMs sent
@@ -76,7 +85,6 @@ class FlightLoop:
         self.would_abort: str | None = None     # a dry run's first crossed limit
         self._prev_tick = 0.0                    # vehicle s of the last tick (clock)
         self._last_state_t: float | None = None  # vehicle s of the last state ticked on
-        self.command_period = min(self.period, 1.0 / COMMAND_RATE) if self.predictor is not None else None
         self._ticks: deque[float] = deque()
         self._stalled: deque[tuple[float, float]] = deque()   # (wall s it ended, wall s it lasted), recent stalls
         self._resumed: float | None = None      # vehicle s the loop resumed after its last stall
