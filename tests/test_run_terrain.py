@@ -6,11 +6,13 @@ a bottom lost for good stops the run."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from plan_helpers import EARTH_MEAN_RADIUS, HOME, waypoint, write_plan
 from run_helpers import RunnerProcess
 
 from rov_mav.review.logdir import read_run_folder
@@ -82,3 +84,26 @@ def test_a_bottom_lost_for_good_stops_the_run_safely(tmp_path):
     assert code != 0 and not metrics.get("completed", False), output
     assert "the bottom lost for" in output and "the leg stopped" in output
     assert "neutral 1500 us on channels 1-8: sent, confirmed by SERVO_OUTPUT_RAW" in output
+
+
+def test_a_plans_terrain_waypoints_are_flown_at_their_height_up_a_slope(tmp_path):
+    """A QGroundControl plan whose second waypoint is in altitude mode Terrain (MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    ArduSub's ABOVE_TERRAIN waypoint): flown 1 m above a 10 % slope, climbing it, held to the true bottom."""
+    north = 8.0 / (EARTH_MEAN_RADIUS * math.pi / 180.0)            # degrees of latitude in 8 m
+    items = [waypoint(1, HOME[0], HOME[1], -7.0), waypoint(2, HOME[0] + north, HOME[1], 1.0, frame=10)]
+    write_plan(tmp_path / "terrain.plan", items)
+    side = tmp_path / "dive.yaml"
+    side.write_text(yaml.safe_dump({
+        "name": "dive", "plan": "terrain.plan", "speed": 0.2,
+        "environment": {"seafloor": {"depth": 8.0, "slope": 0.1},
+                        "navigation": {"preset": "ideal", "echo_sounder": IDEAL_WITH}},
+        "limits": {"max_depth": 12.0}}))
+    code, output, ticks, metrics = fly(tmp_path, side)
+    assert code == 0 and metrics["completed"], output
+    on_leg = np.isfinite(ticks["height_true"]) & (ticks["x"] > 1.0)
+    error = ticks["height_true"][on_leg] - 1.0
+    print(f"true height 1 m {np.sqrt(np.mean(error ** 2)) * 100:.1f} cm RMS; climbed "
+          f"{ticks['z'][0] - ticks['z'][-1]:.2f} m to x {ticks['x'][-1]:.2f} m")
+    assert on_leg.sum() > 100 and np.sqrt(np.mean(error ** 2)) <= 0.05
+    assert ticks["z"][0] - ticks["z"][-1] > 0.6 and ticks["x"][-1] > 7.5        # up the slope, to the waypoint
+    assert metrics["terrain"]["strikes"] == 0

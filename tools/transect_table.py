@@ -2,25 +2,30 @@
 and navigation.
 
 For every bottom (flat, a 10 % slope, a rough 5 % slope, the bottom of a real dive: `tools/seafloor_from_log.py`'s
-profile of the real SURFTRAK dive) x current across the line (none, 0.2 m/s) x echo sounder (ideal, ping) x
-navigation (dvl, dvl+ugps) x controller (fuzzy and ismc holding the height with `rov_mav.mission.terrain`; ardusub-
-guided: ArduSub's GUIDED holding it from its own rangefinder, as PR #27767 does) x seed (the bridge's `--seed`),
-it writes a transect mission (a hold, then LENGTH m north at 0.2 m/s, ALTITUDE m above the bottom), starts `rov-mav
-run --target` against a `rov-mav sim-bridge` process on its own link, with a checker station on a second link
-recording SERVO_OUTPUT_RAW for the thrusters' activity, and prints a markdown table of the means over the seeds: the
-height error RMS against the true bottom (SimHeight) and its max, against the sounder, the cross-track RMS of the
-estimate flown on and of the truth, the speed along the line off the plan, strikes under 0.3 m, activity, runs
-completed and end states. Not yet a row: SURFTRAK with a pilot's forward thrust. Run:
-    .venv/bin/python tools/transect_table.py [--bottoms flat,slope,rough,real] [--currents 0,0.2] [--sounders ping]
-        [--navigation dvl] [--controllers fuzzy,ardusub-guided] [--seeds 1] [--length 20] [--speedup 5]
+profile of the real SURFTRAK dive; and ice: the under-ice survey's ceiling, flown STANDOFF m below it with the
+sounder looking up) x current across the line (none, 0.2 m/s) x echo sounder (ideal, ping) x navigation (dvl,
+dvl+ugps) x controller (fuzzy and ismc holding the height with `rov_mav.mission.terrain`; ardusub-guided: ArduSub's
+GUIDED holding it from its own rangefinder, as PR #27767 does; surftrak: ArduSub's SURFTRAK holding it, the speed and
+the line a pilot's sticks, `tools/surftrak_pilot.py`; under the ice only fuzzy and ismc) x seed (the bridge's
+`--seed`), it writes a transect mission (a hold, then LENGTH m north at 0.2 m/s, ALTITUDE m above the bottom), flies
+it against a `rov-mav sim-bridge` process on its own link (`rov-mav run --target`, or the pilot), with a checker
+station on a second link recording SERVO_OUTPUT_RAW for the thrusters' activity, and prints a markdown table of the
+means over the seeds: the height error RMS against the true bottom (SimHeight) and its max, against the sounder, the
+cross-track RMS of the estimate flown on and of the truth, the speed along the line off the plan, strikes under
+0.3 m, activity, runs completed and end states. Run:
+    .venv/bin/python tools/transect_table.py [--bottoms flat,slope,rough,real,ice] [--currents 0,0.2]
+        [--sounders ideal,ping] [--navigation dvl,dvl+ugps] [--controllers fuzzy,ismc,ardusub-guided,surftrak]
+        [--seeds 1,2] [--length 20] [--speedup 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import os
 import signal
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -29,7 +34,9 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from navigation_table import _stop_reason, fly_with_checker  # noqa: E402
+from link_faults import ROV_MAV, free_port, stop  # noqa: E402
+from navigation_table import OutputRecorder, _stop_reason, fly_with_checker  # noqa: E402
+from surftrak_pilot import fly_surftrak  # noqa: E402
 from vehicle_faults import mission_start  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,9 +49,13 @@ ALTITUDE = 1.0                   # m above the bottom
 SPEED = 0.2                      # m/s along the line
 REAL_LOG = "mohai-2023-10-18-09-55-06-surftrak.tlog"
 BOTTOMS = {"flat": {"depth": 10.0}, "slope": {"depth": 10.0, "slope": 0.1},
-           "rough": {"depth": 10.0, "slope": 0.05, "relief": 0.1, "wavelength": 3.0, "seed": 1}}
+           "rough": {"depth": 10.0, "slope": 0.05, "relief": 0.1, "wavelength": 3.0, "seed": 1},
+           "ice": {"depth": 2.0, "relief": 0.15, "wavelength": 4.0, "seed": 2}}    # the under-ice survey's ceiling
+STANDOFF = 1.5                   # m below the ice
+BELOW_ICE = {"fuzzy", "ismc"}    # GUIDED takes no standoff (a terrain target is a height above the bottom), SURFTRAK
+                                 # looks down
 CONTROLLERS = {"fuzzy": ["--controller", "fuzzy"], "ismc": ["--controller", "ismc"],
-               "ardusub-guided": ["--controller", "ardusub-guided"]}
+               "ardusub-guided": ["--controller", "ardusub-guided"], "surftrak": []}
 
 
 def real_bottom(logs: Path) -> dict:
@@ -54,14 +65,21 @@ def real_bottom(logs: Path) -> dict:
     return {"profile": [[round(float(a), 3), round(float(b), 3)] for a, b in profile]}
 
 
-def transect(folder: Path, bottom: dict, current: float, sounder: str, navigation: str, length: float) -> Path:
-    start_depth = parse_surface(bottom, "seafloor").depth_at(0.0, 0.0) - ALTITUDE
+def transect(folder: Path, bottom: str, surface: dict, current: float, sounder: str, navigation: str,
+             length: float) -> Path:
+    """The transect mission: ALTITUDE m above the bottom, or under the ice (bottom "ice") STANDOFF m below it with
+    the sounder looking up."""
+    under_ice = bottom == "ice"
+    kind, height = ("standoff", STANDOFF) if under_ice else ("altitude", ALTITUDE)
+    start_depth = parse_surface(surface, "ice" if under_ice else "seafloor").depth_at(0.0, 0.0)
+    start_depth += height if under_ice else -height
+    echo_sounder = {"preset": sounder, "looking": "up"} if under_ice else sounder
     mission = {"name": "transect", "start": {"position": [0.0, 0.0, round(start_depth, 3)], "heading": 0.0},
                "ramp_time": 3.0,
-               "path": [{"hold": 8.0, "altitude": ALTITUDE}, {"goto": [length, 0.0], "altitude": ALTITUDE,
-                                                                 "speed": SPEED}, {"hold": 3.0, "altitude": ALTITUDE}],
-               "environment": {"current": [0.0, current, 0.0], "seafloor": bottom,
-                               "navigation": {"preset": navigation, "echo_sounder": sounder}},
+               "path": [{"hold": 8.0, kind: height}, {"goto": [length, 0.0], kind: height, "speed": SPEED},
+                        {"hold": 3.0, kind: height}],
+               "environment": {"current": [0.0, current, 0.0], "ice" if under_ice else "seafloor": surface,
+                               "navigation": {"preset": navigation, "echo_sounder": echo_sounder}},
                "limits": {"max_depth": 20.0, "max_tracking_error": 3.0, "max_thrust": 40.0}}
     path = folder / "transect.yaml"
     path.write_text(yaml.safe_dump(mission))
@@ -70,6 +88,8 @@ def transect(folder: Path, bottom: dict, current: float, sounder: str, navigatio
 
 def fly(mission: Path, controller: str, seed: int, args, folder: Path) -> dict:
     start_depth = yaml.safe_load(mission.read_text())["start"]["position"][2]
+    if controller == "surftrak":
+        return fly_pilot(mission, seed, start_depth, args, folder)
     code, output, end, recorder, m = fly_with_checker(
         mission, CONTROLLERS[controller], ["--seed", str(seed), "--start-depth", str(start_depth)], args.speedup,
         folder)
@@ -78,6 +98,30 @@ def fly(mission: Path, controller: str, seed: int, args, folder: Path) -> dict:
     t0 = mission_start(folder / "log" / "ticks.csv")
     return {"code": code, "completed": m["completed"], **m["terrain"],
             "activity": recorder.activity(t0, t0 + m["duration_s"]), "end": end, "output": output}
+
+
+def fly_pilot(mission: Path, seed: int, start_depth: float, args, folder: Path) -> dict:
+    """The SURFTRAK row: `tools/surftrak_pilot.py`'s pilot on one link of a `rov-mav sim-bridge` process in the
+    mission's environment, the output recorder on a second."""
+    port, checker_port = free_port(), free_port()
+    bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
+                               f"udpin:127.0.0.1:{checker_port}", "--speedup", str(args.speedup), "--environment",
+                               str(mission), "--seed", str(seed), "--start-depth", str(start_depth)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    recorder = OutputRecorder(checker_port)
+    try:
+        figures = fly_surftrak(port, args.speedup, args.length, SPEED, ALTITUDE, folder)
+        t = [row[0] for row in recorder.samples]
+        recorder.finish()
+        end = recorder.end_state()
+    finally:
+        recorder.finish()
+        recorder.close()
+        bridge_output = stop(bridge)
+    error = figures.pop("error", None)
+    return {"code": 1 if error else 0, "completed": error is None, **figures,
+            "activity": recorder.activity(t[0], t[-1]) if t else math.nan, "end": end,
+            "output": error or bridge_output}
 
 
 def _mean(results: list[dict], key: str, scale: float = 100.0) -> float:
@@ -121,27 +165,26 @@ def main() -> None:
           "height RMS vs sounder (cm) | cross-track RMS est / true (cm) | speed RMS (cm/s) | strikes | activity "
           "(us/s) | completed | end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
     notes: list[str] = []
+    rows = itertools.product(bottoms.items(), (float(c) for c in args.currents.split(",")),
+                             args.sounders.split(","), args.navigation.split(","), args.controllers.split(","))
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
-        for bottom, surface in bottoms.items():
-            for current in (float(c) for c in args.currents.split(",")):
-                for sounder in args.sounders.split(","):
-                    for navigation in args.navigation.split(","):
-                        for controller in args.controllers.split(","):
-                            results = []
-                            for seed in seeds:
-                                where = folder / f"{bottom}-{current:g}-{sounder}-{navigation}-{controller}-{seed}"
-                                where.mkdir(parents=True, exist_ok=True)
-                                mission = transect(where, surface, current, sounder, navigation, args.length)
-                                result = fly(mission, controller, seed, args, where)
-                                output = result.pop("output")
-                                (where / "run.txt").write_text(output)
-                                results.append(result)
-                                if not (result.get("completed") and result["code"] == 0):
-                                    notes.append(f"{bottom} {current:g} {sounder} {navigation} {controller} seed "
-                                                 f"{seed}: exit {result['code']}, {_stop_reason(output)}")
-                            print(_row([bottom, f"{current:g}", sounder, navigation, controller], results),
-                                  flush=True)
+        for (bottom, surface), current, sounder, navigation, controller in rows:
+            if bottom == "ice" and controller not in BELOW_ICE:
+                continue
+            results = []
+            for seed in seeds:
+                name = f"{bottom} {current:g} {sounder} {navigation} {controller} seed {seed}"
+                where = folder / name.replace(" ", "-")
+                where.mkdir(parents=True, exist_ok=True)
+                mission = transect(where, bottom, surface, current, sounder, navigation, args.length)
+                result = fly(mission, controller, seed, args, where)
+                output = result.pop("output")
+                (where / "run.txt").write_text(output)
+                results.append(result)
+                if not (result.get("completed") and result["code"] == 0):
+                    notes.append(f"{name}: exit {result['code']}, {_stop_reason(output)}")
+            print(_row([bottom, f"{current:g}", sounder, navigation, controller], results), flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
     for note in notes:
         print(f"not completed: {note}")
