@@ -15,7 +15,7 @@ cross-track RMS of the estimate flown on and of the truth, the speed along the l
 0.3 m, activity, runs completed and end states. Run:
     .venv/bin/python tools/transect_table.py [--bottoms flat,slope,rough,real,ice] [--currents 0,0.2]
         [--sounders ideal,ping] [--navigation dvl,dvl+ugps] [--controllers fuzzy,ismc,ardusub-guided,surftrak]
-        [--seeds 1,2] [--length 20] [--speedup 5]
+        [--seeds 1,2] [--length 20] [--speedup 5] [--figure docs/results/figures/transects.png]
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from link_faults import ROV_MAV, free_port, stop  # noqa: E402
 from navigation_table import OutputRecorder, _stop_reason, fly_with_checker  # noqa: E402
 from surftrak_pilot import fly_surftrak  # noqa: E402
+from transect_figure import draw, read_rows  # noqa: E402
 from vehicle_faults import mission_start  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,8 +92,8 @@ def fly(mission: Path, controller: str, seed: int, args, folder: Path) -> dict:
     if controller == "surftrak":
         return fly_pilot(mission, seed, start_depth, args, folder)
     code, output, end, recorder, m = fly_with_checker(
-        mission, CONTROLLERS[controller], ["--seed", str(seed), "--start-depth", str(start_depth)], args.speedup,
-        folder)
+        mission, [*CONTROLLERS[controller], *args.run_args.split()],
+        ["--seed", str(seed), "--start-depth", str(start_depth)], args.speedup, folder)
     if m is None or m["duration_s"] <= 0.0 or not m.get("terrain"):
         return {"code": code, "output": output, "end": end}
     t0 = mission_start(folder / "log" / "ticks.csv")
@@ -149,9 +150,13 @@ def main() -> None:
     parser.add_argument("--seeds", default="1")
     parser.add_argument("--length", type=float, default=20.0, help="m of the line (default 20)")
     parser.add_argument("--speedup", type=float, default=5.0)
+    parser.add_argument("--run-args", default="", help="more `rov-mav run` options for every run, e.g. "
+                                                       "'--thruster-check off'")
     parser.add_argument("--logs", type=Path, default=os.environ.get("ROVMAV_REAL_LOGS"),
                         help="the real logs' folder (default: ROVMAV_REAL_LOGS), for the real bottom")
     parser.add_argument("--keep", type=Path, help="keep every run's log and output in this folder")
+    parser.add_argument("--figure", type=Path, help="draw the results page's figure (PNG) from the rows measured "
+                                                    "(tools/transect_figure.py)")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if "real" in args.bottoms.split(",") and args.logs is None:
@@ -165,6 +170,7 @@ def main() -> None:
           "height RMS vs sounder (cm) | cross-track RMS est / true (cm) | speed RMS (cm/s) | strikes | activity "
           "(us/s) | completed | end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
     notes: list[str] = []
+    table: list[str] = []
     rows = itertools.product(bottoms.items(), (float(c) for c in args.currents.split(",")),
                              args.sounders.split(","), args.navigation.split(","), args.controllers.split(","))
     with tempfile.TemporaryDirectory() as tmp:
@@ -184,8 +190,12 @@ def main() -> None:
                 results.append(result)
                 if not (result.get("completed") and result["code"] == 0):
                     notes.append(f"{name}: exit {result['code']}, {_stop_reason(output)}")
-            print(_row([bottom, f"{current:g}", sounder, navigation, controller], results), flush=True)
+            table.append(_row([bottom, f"{current:g}", sounder, navigation, controller], results))
+            print(table[-1], flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+    if args.figure is not None:
+        draw(read_rows("\n".join(table)), args.figure)
+        print(f"figure: {args.figure}")
     for note in notes:
         print(f"not completed: {note}")
 
