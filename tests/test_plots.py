@@ -1,10 +1,10 @@
-"""The figures' thinning of long series: what a figure can show is kept."""
+"""The figures: the thinning of long series keeps what a figure can show; a heading is drawn without wrap jumps."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rov_mav.offline.plots import BUCKETS, _envelope
+from rov_mav.offline.plots import BUCKETS, _envelope, _on_reference_branch
 
 
 def test_a_long_series_is_drawn_from_its_buckets_extremes_in_time_order():
@@ -27,3 +27,13 @@ def test_a_long_series_is_drawn_from_its_buckets_extremes_in_time_order():
 def test_a_short_series_is_drawn_whole():
     t = np.arange(10.0)
     assert _envelope(t, t ** 2)[1].tolist() == (t ** 2).tolist()
+
+
+def test_a_heading_is_drawn_on_its_references_branch_across_the_wrap():
+    """A vehicle turning through south (its heading wrapped from +pi to -pi) against an unwrapped reference of
+    1.5 turns: drawn as the reference plus the wrapped error, no line crosses the figure."""
+    reference = np.linspace(0.0, 3.0 * np.pi, 500)
+    vehicle = (reference + 0.02 * np.sin(np.arange(500)) + np.pi) % (2 * np.pi) - np.pi
+    drawn = _on_reference_branch(vehicle, reference)
+    assert np.abs(drawn - reference).max() < 0.021
+    assert np.abs(np.diff(drawn)).max() < 0.1

@@ -53,12 +53,19 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+def _on_reference_branch(angle: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """A heading drawn on its reference's branch (the reference plus the wrapped error): a vehicle at -179 deg
+    against a reference of 181 deg is 2 deg off, not a line across the figure."""
+    return reference + (angle - reference + np.pi) % (2.0 * np.pi) - np.pi
+
+
 def plot_dofs(trace: Trace, title: str, path: Path) -> Path:
     """Each DOF against its reference (the counterpart of Figs. IV-2, IV-3)."""
     fig, axes = _grid(title)
     for i, ax in enumerate(axes):
         _line(ax, trace.t, trace.reference[:, i], "k--", lw=1, label="reference")
-        _line(ax, trace.t, trace.eta[:, i], lw=1.2, label="vehicle")
+        _line(ax, trace.t, _on_reference_branch(trace.eta[:, i], trace.reference[:, i]) if i == 5 else
+              trace.eta[:, i], lw=1.2, label="vehicle")
         ax.set_ylabel(DOF_LABELS[i])
         ax.grid(alpha=0.3)
     axes[0].legend(loc="best")

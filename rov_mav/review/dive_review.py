@@ -535,7 +535,8 @@ def _timeline(dive: Dive, t0: float, state_t: np.ndarray, stale_ms: float) -> li
         att_t = analysis.vehicle_time(dive, dive.attitude_wall) - t0
         degrees = np.degrees(dive.attitude)
         panels.append(("attitude (deg)", {"roll": (att_t, degrees[:, 0]), "pitch": (att_t, degrees[:, 1])}))
-        panels.append(("heading (deg)", {"yaw": (att_t, degrees[:, 2] % 360)}))
+        # turns unwrapped: a heading jittering about north is not drawn as lines from 0 to 360 deg
+        panels.append(("heading (deg)", {"yaw": (att_t, np.degrees(np.unwrap(dive.attitude[:, 2])))}))
     if dive.range_m.size:
         panels.append(("above the bottom (m)", {"rangefinder": (analysis.vehicle_time(dive, dive.range_wall) - t0,
                                                                 dive.range_m)}))
