@@ -1,0 +1,32 @@
+"""The user's pages (get started, first dive, how-to, reference) say what to do, not the project's history: no
+commit hashes, no story of a defect (a flaky test, a fix, an older version). That history is the commit log's."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from conftest import ROOT
+
+DOCS = ROOT / "docs"
+USER_PAGES = sorted([DOCS / "get-started.md", DOCS / "first-dive.md", *(DOCS / "howto").glob("*.md"),
+                     *(DOCS / "reference").glob("*.md")])
+COMMIT = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b")
+HISTORY = re.compile(r"flaky|older version|earlier version|previous version|used to |was fixed|before the fix|"
+                     r"regression|a bug\b", re.IGNORECASE)
+
+
+def test_the_user_pages_are_found():
+    assert len(USER_PAGES) > 15 and all(page.exists() for page in USER_PAGES)
+
+
+@pytest.mark.parametrize("page", USER_PAGES, ids=lambda p: str(p.relative_to(DOCS)))
+def test_a_user_page_carries_no_commit_hash_and_no_defect_history(page):
+    found = [f"{n}: {m.group(0)!r}" for n, line in enumerate(page.read_text().splitlines(), 1)
+             for m in (*COMMIT.finditer(line), *HISTORY.finditer(line))]
+    assert not found, found
+
+
+@pytest.mark.parametrize("text", ["as of 3aa34ff the run", "before, a flaky test found it", "it used to drift"])
+def test_the_check_catches_what_it_is_for(text):
+    assert COMMIT.search(text) or HISTORY.search(text)
