@@ -13,6 +13,7 @@ the truth (and the vehicle's, for --estimator model), heading RMS, activity, con
 states. Run:
     .venv/bin/python tools/navigation_table.py [--missions square,under_ice_survey] [--navigation ugps,dvl+ugps]
                                                 [--rows fuzzy,fuzzy/model,guided] [--seeds 1,2] [--speedup 5]
+                                                [--figure docs/results/figures/navigation.png]
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from pymavlink import mavutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from link_faults import ROV_MAV, RUN_WAIT, Checker, free_port, runner_calling, stop  # noqa: E402
+from navigation_figure import draw, read_rows  # noqa: E402
 from vehicle_faults import mission_start  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -168,6 +170,8 @@ def main() -> None:
     parser.add_argument("--run-args", default="", help="more `rov-mav run` options for every row, e.g. "
                                                          "\"--velocity-blend 0.3\"")
     parser.add_argument("--keep", type=Path, help="keep every run's log and output in this folder")
+    parser.add_argument("--figure", type=Path, help="draw the results page's figure (PNG) from the rows measured "
+                                                    "(tools/navigation_figure.py)")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -178,6 +182,7 @@ def main() -> None:
           "(cm) | estimate's own RMS vs truth (cm) | heading RMS (deg) | activity (us/s) | rate (Hz) | completed | "
           "end state |\n|---|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
     notes: list[str] = []
+    table: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         for mission in args.missions.split(","):
@@ -197,10 +202,14 @@ def main() -> None:
                         if not (result.get("completed") and result["code"] == 0):
                             notes.append(f"{mission} {navigation} {row} seed {seed}: exit {result['code']}, "
                                          f"{_stop_reason(output)}")
-                    print(_row(mission, navigation, row, results), flush=True)
+                    table.append(_row(mission, navigation, row, results))
+                    print(table[-1], flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
     for note in notes:
         print(f"not completed: {note}")
+    if args.figure is not None:
+        draw([r for r in read_rows("\n".join(table)) if not math.isnan(r["rms"])], args.figure)
+        print(f"figure: {args.figure}")
 
 
 if __name__ == "__main__":
