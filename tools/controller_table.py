@@ -10,11 +10,9 @@ import argparse
 import os
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from results_figure import save
 
 from rov_mav.control.controller import KINDS, load_settings  # noqa: E402
 from rov_mav.mission.metrics import trace_metrics  # noqa: E402
@@ -43,9 +41,7 @@ def draw(metrics: dict[tuple[str, str], dict], out: Path) -> None:
     axes[0].legend(fontsize=8, ncols=2)
     fig.suptitle("The shipped gains, simulated on each mission's own environment (state every 10 ms, no delay)",
                  fontsize=11)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def main() -> None:

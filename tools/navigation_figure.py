@@ -6,15 +6,12 @@ and controller, one panel per mission. Rows without a truth (ideal navigation) a
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from results_figure import redraw, save
 
 ROWS = ("fuzzy", "fuzzy/model", "guided")
 LABELS = {"fuzzy": "rov-mav fuzzy on the vehicle's estimate", "fuzzy/model": "rov-mav fuzzy on its own estimate",
@@ -24,14 +21,15 @@ NAVIGATION = ("dvl", "ugps", "dvl+ugps")
 
 
 def read_rows(text: str) -> list[dict]:
-    """The table's data rows: mission, navigation, row, RMS and max against the truth (cm; NaN where none)."""
+    """The table's data rows with a truth: mission, navigation, row, RMS and max against the truth (cm)."""
     rows = []
     for line in text.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if len(cells) < 6 or cells[0] == "mission" or set(cells[0]) <= {"-"}:
             continue
-        rows.append({"mission": cells[0], "navigation": cells[1], "row": cells[2], "rms": float(cells[3]),
-                     "max": float(cells[4])})
+        if cells[3] != "nan":                        # no truth on the link (ideal navigation)
+            rows.append({"mission": cells[0], "navigation": cells[1], "row": cells[2], "rms": float(cells[3]),
+                         "max": float(cells[4])})
     return rows
 
 
@@ -56,17 +54,11 @@ def draw(rows: list[dict], out: Path) -> None:
     axes[0][-1].legend(fontsize=8, loc="upper right")
     fig.suptitle("Position error against the truth per navigation (built-in vehicle, means of two seeds)",
                  fontsize=11)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("tables", nargs="+", type=Path, help="tools/navigation_table.py's saved output")
-    parser.add_argument("--out", type=Path, required=True, help="the PNG to write")
-    args = parser.parse_args()
-    draw([r for table in args.tables for r in read_rows(table.read_text()) if not math.isnan(r["rms"])], args.out)
+    redraw(__doc__.splitlines()[0], "tools/navigation_table.py", read_rows, draw)
 
 
 if __name__ == "__main__":

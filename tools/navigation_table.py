@@ -208,7 +208,7 @@ def main() -> None:
     for note in notes:
         print(f"not completed: {note}")
     if args.figure is not None:
-        draw([r for r in read_rows("\n".join(table)) if not math.isnan(r["rms"])], args.figure)
+        draw(read_rows("\n".join(table)), args.figure)
         print(f"figure: {args.figure}")
 
 

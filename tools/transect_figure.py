@@ -7,15 +7,12 @@ DVL navigation with the Ping-like sounder, without a current and in 0.2 m/s acro
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from results_figure import redraw, save
 
 CONTROLLERS = ("fuzzy", "ismc", "ardusub-guided", "surftrak")
 LABELS = {"fuzzy": "rov-mav fuzzy", "ismc": "rov-mav ismc", "ardusub-guided": "ArduSub GUIDED ABOVE_TERRAIN",
@@ -61,17 +58,11 @@ def draw(rows: list[dict], out: Path) -> None:
     axes[0].annotate("5 cm: the goal on the real bottom", (-0.45, GOAL + 0.2), fontsize=8, color="grey")
     axes[1].legend(fontsize=8, loc="upper left")
     fig.suptitle("1 m above the bottom at 0.2 m/s, DVL navigation, Ping-like sounder (built-in vehicle)", fontsize=11)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("tables", nargs="+", type=Path, help="tools/transect_table.py's saved output")
-    parser.add_argument("--out", type=Path, required=True, help="the PNG to write")
-    args = parser.parse_args()
-    draw([row for table in args.tables for row in read_rows(table.read_text())], args.out)
+    redraw(__doc__.splitlines()[0], "tools/transect_table.py", read_rows, draw)
 
 
 if __name__ == "__main__":
