@@ -8,6 +8,7 @@ lighter and heavier than the law's model (the prediction's model is then wrong t
 of the three; the margin is the largest d at which all three stay within the square's limits (max error 1.5 m,
 |roll|, |pitch| 15 deg, no divergence) at every d up to it. Run:
     .venv/bin/python tools/delay_margin.py [--delays 0,25,50,...] [--mission missions/square.yaml]
+        [--figure docs/results/figures/delay-margin.png]
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ import os
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from results_figure import save
 
 from rov_mav.control.controller import load_settings
 from rov_mav.mission.metrics import trace_metrics
@@ -50,10 +53,30 @@ def fly(mission, vehicle, kind: str, delay_ms: float, predict: bool) -> tuple[bo
     return within, worst
 
 
+def draw(curves: dict[tuple[str, bool], list[float]], delays: list[float], out: Path) -> None:
+    """The worst RMS against the delay each way, a line per controller, with the prediction (left) and without
+    (right); a point left out where a plant left the limits."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharex=True, sharey=True)
+    for ax, predict in zip(axes, (True, False)):
+        for kind in KINDS:
+            ax.plot(delays, curves[(kind, predict)], "o-", ms=3, label=kind)
+        ax.set_title("state predicted forward" if predict else "without the prediction")
+        ax.set_xlabel("link delay each way (ms)")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("worst position error RMS (cm)")
+    axes[0].legend(fontsize=8)
+    axes[1].annotate("a missing point: a plant left the square's limits", (0.25, 0.9), xycoords="axes fraction",
+                     fontsize=8, color="grey")
+    fig.suptitle("The square through a late link (offline, plants 20 % lighter and heavier than the model)",
+                 fontsize=11)
+    save(fig, out)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mission", type=Path, default=ROOT / "missions" / "square.yaml")
     parser.add_argument("--delays", default=",".join(str(d) for d in DELAYS_MS), help="ms each way, ascending")
+    parser.add_argument("--figure", type=Path, help="also draw the results page's figure (PNG)")
     args = parser.parse_args()
     mission, vehicle = load_mission(args.mission), load_vehicle()
     delays = [float(d) for d in args.delays.split(",")]
@@ -63,17 +86,23 @@ def main() -> None:
           f"{os.getloadavg()[0]:.1f}")
     print("| controller | prediction | margin (each way) | " + " | ".join(f"{d:g} ms" for d in delays) + " |")
     print("|---|---|---:|" + "---:|" * len(delays))
+    curves: dict[tuple[str, bool], list[float]] = {}
     for kind in KINDS:
         for predict in (True, False):
             cells, margin, holding = [], None, True
+            curve = curves[(kind, predict)] = []
             for d in delays:
                 within, rms = fly(mission, vehicle, kind, d, predict)
                 cells.append(f"{rms * 100:.2f} cm" if within else "out")
+                curve.append(rms * 100 if within else float("nan"))
                 holding = holding and within
                 margin = d if holding else margin
             shown = "none" if margin is None else f"{margin:g} ms"
             print(f"| {kind} | {'on' if predict else 'off'} | {shown} | " + " | ".join(cells) + " |", flush=True)
     print(f"{time.perf_counter() - start:.0f} s; load average after: {os.getloadavg()[0]:.1f}")
+    if args.figure is not None:
+        draw(curves, delays, args.figure)
+        print(f"figure: {args.figure}")
 
 
 if __name__ == "__main__":
