@@ -87,6 +87,14 @@ class OutputRecorder(Checker):
         return pwm_activity(np.array([t for t, _ in rows]), np.array([p for _, p in rows], dtype=float))
 
 
+def start_bridge(port: int, checker_port: int, speedup: float, mission: Path, options: list[str]) -> subprocess.Popen:
+    """A `rov-mav sim-bridge` process in `mission`'s environment with `options`, listening on `port` (the flight's
+    link) and `checker_port` (the output recorder's)."""
+    return subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
+                             f"udpin:127.0.0.1:{checker_port}", "--speedup", str(speedup), "--environment",
+                             str(mission), *options], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
 def fly_with_checker(mission: Path, run_options: list[str], bridge_options: list[str], speedup: float,
                      folder: Path) -> tuple[int, str, str, OutputRecorder | None, dict | None]:
     """`rov-mav run --target` of `mission` with `run_options` against a `rov-mav sim-bridge` process (its
@@ -102,10 +110,7 @@ def fly_with_checker(mission: Path, run_options: list[str], bridge_options: list
     end, output = "?", ""
     try:
         runner_calling(port)
-        bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
-                                   f"udpin:127.0.0.1:{checker_port}", "--speedup", str(speedup), "--environment",
-                                   str(mission), *bridge_options],
-                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        bridge = start_bridge(port, checker_port, speedup, mission, bridge_options)
         recorder = OutputRecorder(checker_port)
         output = runner.communicate(timeout=RUN_WAIT)[0]
         recorder.finish()

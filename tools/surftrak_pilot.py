@@ -152,8 +152,13 @@ class SurftrakPilot:
             trim["y"] += LINE_TRIM * -y * dt
             return trim["x"] + SPEED_GAIN * along, trim["y"] - LINE_GAIN * y - LINE_DAMPING * vy
 
+        def coast(t: float) -> tuple[float, float]:
+            """Sticks centred at the line's end: the vehicle coasts to a stop."""
+            self._record(length, altitude)
+            return 0.0, 0.0
+
         self._fly_for(HOLD + RAMP / 2 + length / speed, stick)
-        self._fly_for(3.0, lambda t: (self._record(length, altitude), (0.0, 0.0))[1])     # coasting to a stop
+        self._fly_for(3.0, coast)
         self._arm(False)
         self._until(lambda: not self.armed, "disarm")
         self._set_mode(0)
@@ -165,7 +170,7 @@ class SurftrakPilot:
         self.rows.append((self.now, *self.position[:3], *truth, height, sounding, x_d, target))
 
     def metrics(self) -> dict:
-        """`terrain_metrics` of the flight, from the first sample after the hold's start on."""
+        """`terrain_metrics` of the flight (its samples from SURFTRAK's entry on)."""
         rows = np.array(self.rows)
         t, eta, truth = rows[:, 0], np.zeros((len(rows), 6)), rows[:, 4:7]
         eta[:, :3] = rows[:, 1:4]
@@ -177,11 +182,12 @@ class SurftrakPilot:
 
 
 def fly_surftrak(port: int, speedup: float, length: float, speed: float, altitude: float, folder: Path) -> dict:
-    """The pilot's transect on the vehicle listening on `port`: its terrain figures, or {"error": why}."""
+    """The pilot's transect on the vehicle listening on `port`: its terrain figures and the vehicle times it flew
+    from and to ("flown"), or {"error": why}."""
     pilot = SurftrakPilot(port, speedup)
     try:
         pilot.fly(length, speed, altitude)
-        figures = pilot.metrics()
+        figures = {**pilot.metrics(), "flown": (pilot.rows[0][0], pilot.rows[-1][0])}
         np.savetxt(folder / "pilot.csv", np.array(pilot.rows), delimiter=",",
                    header="t,x,y,z,north_true,east_true,down_true,height_true,sounding,x_d,target", comments="")
         return figures

@@ -25,7 +25,6 @@ import itertools
 import math
 import os
 import signal
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -34,8 +33,8 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from link_faults import ROV_MAV, free_port, stop  # noqa: E402
-from navigation_table import OutputRecorder, _stop_reason, fly_with_checker  # noqa: E402
+from link_faults import free_port, stop  # noqa: E402
+from navigation_table import OutputRecorder, _stop_reason, fly_with_checker, start_bridge  # noqa: E402
 from surftrak_pilot import fly_surftrak  # noqa: E402
 from transect_figure import draw, read_rows  # noqa: E402
 from vehicle_faults import mission_start  # noqa: E402
@@ -105,14 +104,11 @@ def fly_pilot(mission: Path, seed: int, start_depth: float, args, folder: Path) 
     """The SURFTRAK row: `tools/surftrak_pilot.py`'s pilot on one link of a `rov-mav sim-bridge` process in the
     mission's environment, the output recorder on a second."""
     port, checker_port = free_port(), free_port()
-    bridge = subprocess.Popen([ROV_MAV, "sim-bridge", "--listen", f"udpin:127.0.0.1:{port}", "--listen",
-                               f"udpin:127.0.0.1:{checker_port}", "--speedup", str(args.speedup), "--environment",
-                               str(mission), "--seed", str(seed), "--start-depth", str(start_depth)],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    bridge = start_bridge(port, checker_port, args.speedup, mission,
+                          ["--seed", str(seed), "--start-depth", str(start_depth)])
     recorder = OutputRecorder(checker_port)
     try:
         figures = fly_surftrak(port, args.speedup, args.length, SPEED, ALTITUDE, folder)
-        t = [row[0] for row in recorder.samples]
         recorder.finish()
         end = recorder.end_state()
     finally:
@@ -120,9 +116,9 @@ def fly_pilot(mission: Path, seed: int, start_depth: float, args, folder: Path) 
         recorder.close()
         bridge_output = stop(bridge)
     error = figures.pop("error", None)
+    flown = figures.pop("flown", None)              # vehicle s: the pilot's first and last sample in SURFTRAK
     return {"code": 1 if error else 0, "completed": error is None, **figures,
-            "activity": recorder.activity(t[0], t[-1]) if t else math.nan, "end": end,
-            "output": error or bridge_output}
+            "activity": recorder.activity(*flown) if flown else math.nan, "end": end, "output": error or bridge_output}
 
 
 def _mean(results: list[dict], key: str, scale: float = 100.0) -> float:

@@ -47,7 +47,6 @@ DISARM_WORDS = 5.0               # vehicle s: its texts this recent are quoted w
 PILOT_INPUT_LOST = "Lost manual control"   # `Sub::failsafe_pilot_input_check` (ArduSub/failsafe.cpp)
 
 
-
 def command_period(telemetry_period: float) -> float:
     """Vehicle s between commands when the state is predicted: a telemetry period, at most 1 / COMMAND_RATE. The
     prediction's command history is kept at this resolution too: slots of a slow link's period would smear each
