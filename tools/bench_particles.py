@@ -10,7 +10,7 @@ in one run, process CPU time / particle-steps simulated, min and median of --rep
   3. ours on the 2-thread backend (`TuningProblem.costs` on `ThreadBackend`);
   4. the wall and CPU time of one robust tune iteration (the 7 scenarios of missions/scenarios/robust.yaml x 100
      particles) on 2 threads; times 100 iterations: the paper-scale robust tune (CPU / 2: on 2 cores to itself).
-Run:  .venv/bin/python tools/bench_particles.py [--repeats 5]
+Run:  .venv/bin/python tools/bench_particles.py [--repeats 5] [--figure PNG]
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+import particles_figure
 from bench_tune import CountingBackend
 from rov_mav.control.controller import KINDS, load_settings
 from rov_mav.mission.missions import load_mission
@@ -162,10 +163,19 @@ def particles(settings, n: int) -> np.ndarray:
     return np.stack([settings.with_gains(g).vector for g in settings.gains * scale])
 
 
+def figure_rows(samples: dict, ours: dict) -> list[dict]:
+    """The C loop and each controller on one thread as `particles_figure` draws them: median ns, ours / C."""
+    def row(name, controller):
+        ratio = statistics.median(a / c for (a, _), (c, _) in zip(samples[name], samples["C"]))
+        return {"controller": controller, "median": statistics.median(ns for ns, _ in samples[name]), "ratio": ratio}
+    return [row("C", "C"), *(row(name, name[0]) for name in ours if name[1] == 1)]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--figure", type=Path, help="also draw the one-thread figures beside C (PNG)")
     args = parser.parse_args()
 
     mission, model = load_mission(ROOT / "missions" / "line.yaml"), load_vehicle()
@@ -198,6 +208,8 @@ def main() -> None:
             print(f"{kind:<14} {cells((kind, 1))}   {cells((kind, args.threads))}   {share[kind]:.0%}")
         print("(/C: median over the rounds of ours / C in the same round; simulated: the share of the batch's "
               "particle-steps run, the rest stopped at saturation)")
+        if args.figure and "C" in samples:
+            particles_figure.draw(figure_rows(samples, ours), args.figure)
         worst = max(min(ns for ns, _ in samples[name]) for name in ours)
         print(f"target <= {TARGET_NS} ns CPU per particle-step for every controller: "
               f"{'met' if worst <= TARGET_NS else 'NOT met'} (worst min {worst:.0f} ns)\n")

@@ -84,7 +84,8 @@ def main() -> None:
     print(f"mission {mission.name}; state age 2 x delay + {HOLD * 1e3:.0f} ms, 50 Hz telemetry with noise; plants "
           f"x{', x'.join(f'{s:g}' for s in PLANT_SCALES)}; worst RMS of the plants; load average before: "
           f"{os.getloadavg()[0]:.1f}")
-    print("| controller | prediction | margin (each way) | " + " | ".join(f"{d:g} ms" for d in delays) + " |")
+    print("Worst RMS position error (cm) at each delay each way (ms):\n")
+    print("| controller | prediction | margin | " + " | ".join(f"{d:g}" for d in delays) + " |")
     print("|---|---|---:|" + "---:|" * len(delays))
     curves: dict[tuple[str, bool], list[float]] = {}
     for kind in KINDS:
@@ -93,7 +94,7 @@ def main() -> None:
             curve = curves[(kind, predict)] = []
             for d in delays:
                 within, rms = fly(mission, vehicle, kind, d, predict)
-                cells.append(f"{rms * 100:.2f} cm" if within else "out")
+                cells.append(f"{rms * 100:.2f}" if within else "out")
                 curve.append(rms * 100 if within else float("nan"))
                 holding = holding and within
                 margin = d if holding else margin

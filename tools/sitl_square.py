@@ -13,7 +13,8 @@ the stalls (state samples more than 60 ms of vehicle time apart, and the longest
 runner or SITL is sometimes descheduled, and the vehicle then keeps its last command.
 
     nice .venv/bin/python tools/sitl_square.py [--runs 2] [--speedup 2] [--guided 10] [--param NAME=VALUE ...]
-                                               [--mission missions/square.yaml] [--out out/sitl] [-- RUN OPTIONS]
+                                               [--mission missions/square.yaml] [--out out/sitl] [--figure PNG]
+                                               [-- RUN OPTIONS]
 e.g. `-- --vehicle my_vehicle.yaml --controller constant`. SITL from ARDUSUB_SITL (ArduPilot's build/sitl/bin/ardusub).
 """
 
@@ -29,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import sitl_figure
 from sitl_links import Monitor
 
 from rov_mav.mission.missions import load_mission
@@ -166,20 +168,21 @@ def table_row(label: str, row: dict) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def print_table(label: str, rows: list[dict]) -> None:
-    print("| run | " + " | ".join(name for name, _, _ in COLUMNS) + " |")
-    print("|" + "---|" * (len(COLUMNS) + 1))
-    for i, row in enumerate(rows, 1):
-        print(table_row(f"{label} #{i}", row))
+def print_table(label: str, rows: list[dict]) -> str:
+    """Prints the table (and each run's tau_hat); returns the table's markdown."""
+    table = ["| run | " + " | ".join(name for name, _, _ in COLUMNS) + " |", "|" + "---|" * (len(COLUMNS) + 1)]
+    table += [table_row(f"{label} #{i}", row) for i, row in enumerate(rows, 1)]
     if len(rows) > 1:
         mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]
                 if isinstance(rows[0][k], (int, float)) and rows[0][k] is not None}
-        print(table_row(f"{label} mean", mean))
+        table.append(table_row(f"{label} mean", mean))
+    print("\n".join(table))
     for i, row in enumerate(rows, 1):
         if row["tau_hat"] is not None:
             print(f"run {i}: tau_hat at the end [X Y Z N; K M N N m] = "
                   + ", ".join(f"{v:+.2f}" for v in row["tau_hat"])
                   + f"; watchdog neutral episodes {row['stale']}; battery {row['voltage']} V")
+    return "\n".join(table)
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -204,6 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="SITL parameter at boot (e.g. SIM_BARO_RND=0.02)")
     p.add_argument("--label", default=None, help="row label (default: the flight kind)")
     p.add_argument("--out", type=Path, default=ROOT / "out" / "sitl")
+    p.add_argument("--figure", type=Path, help="also draw the table as the results page shows it (PNG)")
     args = p.parse_args(argv)
     args.run_options = run_options
     try:
@@ -227,7 +231,9 @@ def main(argv: list[str] | None = None) -> int:
         print(table_row(label, rows[-1]), flush=True)
     print()
     print("command: " + " ".join(["tools/sitl_square.py", *sys.argv[1:]]))
-    print_table(label.strip(), rows)
+    table = print_table(label.strip(), rows)
+    if args.figure:
+        sitl_figure.draw(sitl_figure.read_rows(table), args.figure)
     return 0
 
 

@@ -7,7 +7,7 @@ latency (telemetry in -> override out) and the tracking error per window of vehi
 window, and the memory growth per hour of vehicle time after the first window (start-up allocations excluded).
 
 Run (an hour of vehicle time at --speedup 10 takes about 6 minutes of wall time on 2 cores):
-    .venv/bin/python tools/soak.py [--hours 1] [--speedup 10] [--window 600] [--out out/soak]
+    .venv/bin/python tools/soak.py [--hours 1] [--speedup 10] [--window 600] [--out out/soak] [--figure PNG]
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import soak_figure
 import yaml
 from pymavlink import mavutil
 
@@ -115,6 +116,7 @@ def main() -> int:
     ap.add_argument("--speedup", type=float, default=10.0, help="bridge speedup (default 10)")
     ap.add_argument("--window", type=float, default=600.0, help="report window, vehicle s (default 600)")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "soak", help="directory for the mission and log")
+    ap.add_argument("--figure", type=Path, help="also draw the table as the results page shows it (PNG)")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     mission = looped_square(a.hours, a.out)
@@ -145,12 +147,13 @@ def main() -> int:
     rows = window_rows(ticks, samples, a.window, mission_start_boot_s(ticks, samples))
     print(f"\nflown: {rows[-1]['from_min'] + a.window / 60:.0f} min of vehicle time in {wall:.0f} s of wall time "
           f"at --speedup {a.speedup:g}\n")
-    print("| from (min) | control rate (Hz) | min 1-s rate (Hz) | latency p50 / p99 (ms) | RMS error (cm) "
-          "| runner RSS (MB) | bridge RSS (MB) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|")
-    for r in rows:
-        print(f"| {r['from_min']:.0f} | {r['rate_hz']:.2f} | {r['rate_min_hz']:.0f} | {r['lat_p50_ms']:.2f} / "
-              f"{r['lat_p99_ms']:.2f} | {r['rms_cm']:.2f} | {r['runner_mb']:.1f} | {r['bridge_mb']:.1f} |")
+    table = ["| from (min) | control rate (Hz) | min 1-s rate (Hz) | latency p50 / p99 (ms) | RMS error (cm) "
+             "| runner RSS (MB) | bridge RSS (MB) |", "|---:|---:|---:|---:|---:|---:|---:|"]
+    table += [f"| {r['from_min']:.0f} | {r['rate_hz']:.2f} | {r['rate_min_hz']:.0f} | {r['lat_p50_ms']:.2f} / "
+              f"{r['lat_p99_ms']:.2f} | {r['rms_cm']:.2f} | {r['runner_mb']:.1f} | {r['bridge_mb']:.1f} |" for r in rows]
+    print("\n".join(table))
+    if a.figure:
+        soak_figure.draw(soak_figure.read_rows("\n".join(table)), a.figure)
     if len(rows) >= 3:
         hours = (rows[-1]["from_min"] - rows[0]["from_min"]) / 60.0
         for who in ("runner", "bridge"):

@@ -11,7 +11,7 @@ after the fault), completed or how it ended (exit status), RMS and max position 
 run's ticks.csv: the vehicle's reported position, here its true one plus the mission's sensor noise), and the end
 state. Run:
     .venv/bin/python tools/vehicle_faults.py [--mission missions/square.yaml] [--speedup 5] [--at 60]
-                                             [--only dead,reboot] [--keep DIR]
+                                             [--only dead,reboot] [--keep DIR] [--figure PNG]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import vehicle_faults_figure  # noqa: E402
 from link_faults import ROV_MAV, RUN_WAIT, Checker, free_port, runner_calling, stop  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -159,22 +160,28 @@ def main() -> None:
     parser.add_argument("--only", default=",".join(n for n in FAULTS if n != "healthy"),
                         help=f"faults to fly, of {', '.join(FAULTS)}")
     parser.add_argument("--keep", type=Path, help="write every run's and bridge's output to this folder")
+    parser.add_argument("--figure", type=Path, help="also draw the table as the results page shows it (PNG)")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     print(f"mission {args.mission.name}, bridge --speedup {args.speedup:g}, faults at mission t = {args.at:g} s; load "
           f"average before: {os.getloadavg()[0]:.1f}", flush=True)
-    print("| fault | struck at (mission s) | what the run said | after (vehicle s) | completed / exit | RMS / max "
-          "error after it | end state |\n|---|---|---|---|---|---|---|", flush=True)
+    table = ["| fault | struck at (mission s) | what the run said | after (vehicle s) | completed / exit | RMS / max "
+             "error after it | end state |", "|---|---|---|---|---|---|---|"]
+    print("\n".join(table), flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         healthy = fly("healthy", None, args, Path(tmp))
-        print(f"| none | - | - | - | {'yes' if healthy['code'] == 0 else 'no: ' + healthy['reason']} / "
-              f"{healthy['code']} | {healthy['rms']:.2f} / {healthy['max']:.1f} cm | {healthy['end']} |", flush=True)
+        table.append(f"| none | - | - | - | {'yes' if healthy['code'] == 0 else 'no: ' + healthy['reason']} / "
+                     f"{healthy['code']} | {healthy['rms']:.2f} / {healthy['max']:.1f} cm | {healthy['end']} |")
+        print(table[-1], flush=True)
         for name in args.only.split(","):
             r = fly(name, healthy["start"] + args.at, args, Path(tmp))
             done = "yes" if r["code"] == 0 else "no"
-            print(f"| {FAULTS[name][0].replace('@{T}s', '')} | {r['at']:.1f} | {r['said']} | {r['detected']:.2f} | "
-                  f"{done} / {r['code']} | {r['rms']:.2f} / {r['max']:.1f} cm | {r['end']} |", flush=True)
+            table.append(f"| {FAULTS[name][0].replace('@{T}s', '')} | {r['at']:.1f} | {r['said']} | "
+                         f"{r['detected']:.2f} | {done} / {r['code']} | {r['rms']:.2f} / {r['max']:.1f} cm | {r['end']} |")
+            print(table[-1], flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+    if args.figure:
+        vehicle_faults_figure.draw(vehicle_faults_figure.read_rows("\n".join(table)), args.figure)
 
 
 if __name__ == "__main__":
