@@ -13,7 +13,8 @@ Run it with `rov-mav sim-bridge` (see its --help), or embed it:
 Rooms from the bottom up (each imports only the rooms listed before it), then the assembly:
 
 - hardware/: physics, battery, power and boot, faults, the flight controller's arithmetic
-- modes/: the flight modes' controllers, one file each as ArduSub's mode_*.cpp: holds, GUIDED, SURFACE, SURFTRAK
+- modes/: the flight modes' controllers, one file each as ArduSub's mode_*.cpp: holds, GUIDED, SURFACE, SURFTRAK,
+  AUTO
 - autopilot/: ArduSub's flight code: parameters, pilot input, arming, failsafes, the loop, the mixer
 - gcs/: what ArduSub says and answers on its links: telemetry, schedule, protocol, missions, signing, routing
 - navigation/: sensors, the estimator, the EKF's aiding and status, the navigation sources' messages, the sensors

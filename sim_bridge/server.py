@@ -215,9 +215,11 @@ class Bridge:
             base_mode=sub.base_mode(), custom_mode=sub.mode, system_status=sub.system_status(),
             throttle=float(sub.pilot_axes()[3]) if sub.armed else 0.0,
             voltage=battery.voltage, current=battery.current, consumed_ah=avionics.consumed_ah(),
-            remaining=avionics.remaining(self.params["BATT_CAPACITY"]), origin=self.config.origin, water_density=self.vehicle.water_density,
+            remaining=avionics.remaining(self.params["BATT_CAPACITY"]), origin=self.config.origin,
+            water_density=self.vehicle.water_density,
             gravity=self.vehicle.gravity, unix_start=self.unix_start + self.boot.start * self.physics.h,
-            firmware=self.params.firmware, mission_count=len(self.missions.items), safety_on=sub.safety_on,
+            firmware=self.params.firmware, mission_count=len(self.missions.items),
+            mission_current=sub.auto.mission_current(len(self.missions.items)), safety_on=sub.safety_on,
             initialised=sub.initialised, local_position=not nav.const_pos, ekf_flags=avionics.flags(uptime),
             ekf_variances=avionics.variances(uptime), battery_state=sub.failsafes.battery,
             battery_failsafed=sub.failsafes.battery_failsafed, depth_present=avionics.depth_present,
@@ -252,7 +254,7 @@ class Bridge:
         parameters."""
         if self.boot.reboots:
             self.params.reboot()
-        self.sub = ArduSub(self.params, origin=self.config.origin)
+        self.sub = ArduSub(self.params, origin=self.config.origin, mission=lambda: self.missions.items)
         self.sub.initialised = False
         plant = self.physics.plant
         self.avionics = Avionics(self.vehicle_faults, self.physics.battery, self.t, self.navigation,
@@ -390,13 +392,17 @@ class Bridge:
                         self.protocol.handle(msg, -1, None, self.uptime)
 
     def _send_due(self) -> None:
-        """The main loop's output: texts, the streams due on each link, the mission protocol's requests."""
+        """The main loop's output: texts, AUTO's MISSION_ITEM_REACHED, the streams due on each link, the mission
+        protocol's requests."""
         uptime = self.uptime
         while self.sub.texts:
             severity, text = self.sub.texts.pop(0)
             if self.onboard_log is not None:
                 self.onboard_log.text(uptime, text)
             self._broadcast(telemetry.ENCODER.statustext_encode(severity, text.encode()[:50]))
+        for seq in self.sub.auto.reached:              # `GCS::send_mission_item_reached_message`: every link
+            self._broadcast(telemetry.ENCODER.mission_item_reached_encode(seq))
+        self.sub.auto.reached.clear()
         snap = None
         for link, scheduler in zip(self.links, self.schedulers):
             for msg in self.protocol.queued_params(link.channel, uptime):

@@ -21,7 +21,8 @@ A simulated BlueROV2 Heavy that speaks ArduSub's MAVLink (MAVLink 2), so that a 
 MAVProxy), MAVSDK or `rov-mav run` can fly it as they would a real one or ArduSub SITL.
 
 What it emulates: HEARTBEAT as ArduSub (submarine, modes MANUAL/STABILIZE/ACRO/ALT_HOLD/POSHOLD/GUIDED/SURFACE/
-SURFTRAK, the assisted ones holding attitude, depth and position with simple loops of its own; other modes refused),
+SURFTRAK/AUTO, the assisted ones holding attitude, depth and position with simple loops of its own, AUTO flying the
+stored mission's waypoints at a depth or above the bottom; other modes refused),
 arming and
 DO_SET_MODE/SET_MODE with COMMAND_ACK, parameters (PARAM_*) with ArduSub's names and defaults,
 SET_MESSAGE_INTERVAL / REQUEST_MESSAGE / REQUEST_DATA_STREAM, RC_CHANNELS_OVERRIDE exactly as ArduSub treats it

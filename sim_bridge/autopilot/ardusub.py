@@ -25,9 +25,11 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
   (AP_MotorsMulticopter::check_mot_pwm_params); every output fits uint16 as the hardware register does; in STABILIZE,
   ACRO, ALT_HOLD and POSHOLD through the holds of `stabilize` first, in GUIDED through `guided`'s position
   controller (its targets from SET_POSITION_TARGET_LOCAL_NED), on the state estimate passed to `update`; SURFACE as
-  `sim_bridge.modes.surface`. Mode changes pass `Sub::set_mode`'s gates (`sim_bridge.modes.gates`): GUIDED and
-  POSHOLD need
-  `Sub::position_ok` (the EKF's, from `sensors`, and no EKF failsafe), ALT_HOLD a working depth sensor.
+  `sim_bridge.modes.surface`; AUTO flies the stored mission (`mission`, the items as `sim_bridge.gcs.missions`
+  keeps them) through `sim_bridge.modes.auto`, armed or not, with GUIDED's controller. Mode changes pass
+  `Sub::set_mode`'s gates (`sim_bridge.modes.gates`): GUIDED, POSHOLD and AUTO need `Sub::position_ok` (the EKF's,
+  from `sensors`, and no EKF failsafe), ALT_HOLD a working depth sensor, AUTO a mission; leaving AUTO stops the
+  mission (`Sub::exit_mode`).
 - The failsafes (pilot input, GCS, leak, battery, EKF, depth sensor): `sim_bridge.autopilot.failsafes`, as
   ArduSub/failsafe.cpp keeps them, on the `sensors` given to `update`.
 - HEARTBEAT system_status (`GCS_MAVLINK_Sub::vehicle_system_status`): CRITICAL while a failsafe of
@@ -45,6 +47,8 @@ Behaviour reproduced on purpose, hazards included (reference: bluerov2-ardusub.m
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from rov_mav.model.frames import MAX_MOTORS, frame_of
@@ -55,6 +59,7 @@ from sim_bridge.autopilot.params import Params
 from sim_bridge.autopilot.rc import RCInput
 from sim_bridge.hardware.numeric import f32, float_to_int, is_equal
 from sim_bridge.modes import gates, guided, surface
+from sim_bridge.modes.auto import Auto
 from sim_bridge.modes.gates import GUIDED_FLAG_MODES, MODE_NAMES, MODES, SUPPORTED_MODES  # noqa: F401 (re-exported)
 from sim_bridge.modes.guided import Guided
 from sim_bridge.modes.stabilize import ALT_HOLD, ASSISTED, Holds
@@ -83,8 +88,10 @@ MOTOR_TEST_COOLDOWN = 10.0      # s after a timeout before a new test may start
 class ArduSub:
     """State of one emulated ArduSub vehicle; drive it with the handlers and `update(t)`."""
 
-    def __init__(self, params: Params, t: float = 0.0, origin: tuple[float, float, float] | None = None):
+    def __init__(self, params: Params, t: float = 0.0, origin: tuple[float, float, float] | None = None,
+                 mission: Callable[[], list] | None = None):
         self.params = params
+        self.mission = mission or list                  # the stored mission's items, home's slot first
         self.sysid = params.sysid & 0xFF                # `mavlink_system.sysid` is a uint8_t
         self.frame = frame_of(int(params["FRAME_CONFIG"]))   # fixed at boot
         self.origin = origin                            # the EKF origin (lat deg, lon deg, alt m); home is it
@@ -119,6 +126,7 @@ class ArduSub:
         self._nobaro = False                          # SURFACE entered without a depth sensor (4.7)
         self.rangefinder = Rangefinder(params)        # `sim_bridge.modes.terrain`: set up at boot
         self.surftrak = Surftrak()
+        self.auto = Auto(self.guided)                 # `sim_bridge.modes.auto`: AUTO's mission (AP_Mission)
 
     # -- inputs ----------------------------------------------------------------------------------------------
 
@@ -181,16 +189,22 @@ class ArduSub:
         if custom_mode == self.mode:
             return True
         depth_present, depth_failsafe = self.sensors.depth_present, self.failsafes.depth
-        refused = gates.refusal(custom_mode, self.params.firmware, self.position_ok(), depth_present, depth_failsafe)
+        refused = gates.refusal(custom_mode, self.params.firmware, self.position_ok(), depth_present, depth_failsafe,
+                                mission_present=len(self.mission()) > 1)
         if refused:
             self.texts += [(MAV_SEVERITY_WARNING, text) for text in refused]
             return False
         if custom_mode == MODES["SURFACE"]:
             self._nobaro = gates.barometer_refusal(depth_present, depth_failsafe) is not None
+        previous = self.mode
         if custom_mode != self.mode:
             self.holds.reset()
             self.guided.reset()
             self._held = None
+        if custom_mode == MODES["AUTO"]:                  # `ModeAuto::init`, before the mode is AUTO
+            self.auto.enter(self, self._state, self._t)
+        if previous == MODES["AUTO"]:
+            self.auto.exit()
         self.mode = custom_mode
         if custom_mode == MODES["SURFTRAK"]:
             depth = float(self._state[0][2]) if self._state is not None else 0.0
@@ -276,6 +290,11 @@ class ArduSub:
         at_surface = self.surface.update(self.armed, float(state[0][2]) if depth_ok and state else None, self.params)
         if state is not None:
             self.rangefinder.update(t, float(state[0][2]), self.params)
+        if self.mode == MODES["AUTO"] and state is not None:      # the mission runs disarmed too
+            axes = self.auto.run(self, state, t, dt)
+            if axes is not None and self.armed and self.mode == MODES["AUTO"]:
+                self._held = mixer.to_pwm(self._mix(axes), *self._pwm_range())
+            return
         if not self.armed or state is None:
             return
         if self.mode == MODES["SURFACE"] and at_surface and not self._nobaro:

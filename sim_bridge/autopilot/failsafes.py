@@ -1,5 +1,5 @@
 """ArduSub's failsafes on the built-in vehicle, as ArduSub/failsafe.cpp keeps them: pilot input, GCS, leak, battery
-monitor, EKF variance, depth sensor.
+monitor, EKF variance, depth sensor, terrain.
 
 ArduSub 4.7's (ArduSub/failsafe.cpp @01218ccc; 4.5 the same unless said), on the time since boot, at their loop rates:
 - Pilot-input failsafe (`Sub::failsafe_pilot_input_check`, checked every loop): after FS_PILOT_TIMEOUT with no
@@ -31,6 +31,13 @@ ArduSub 4.7's (ArduSub/failsafe.cpp @01218ccc; 4.5 the same unless said), on the
 - Depth sensor (`Sub::failsafe_sensors_check`, 50 Hz): only with a depth sensor found at boot. Unhealthy: CRITICAL
   "Depth sensor error!" once, and from ALT_HOLD, SURFACE or a mode needing a position to MANUAL (a refused change
   disarms); healthy again clears it.
+- Terrain (`Sub::failsafe_terrain_check`, three_hz_loop; `failsafe_terrain_set_status`, `failsafe_terrain_on_event`,
+  `failsafe_terrain_act` in failsafe.cpp / events.cpp, a 4.5+-era copy): AUTO's navigator reports each loop whether
+  it had the terrain data a terrain leg needs (`terrain_status`); in AUTO or GUIDED, failures spanning more than 1 s
+  (FS_TERRAIN_TIMEOUT_MS; 0.1 s of successes clears them) send CRITICAL "Failsafe terrain triggered" and the event:
+  with the rangefinder enabled, AUTO's recovery (`sim_bridge.modes.auto.Auto.recover_start`), else (or when it
+  cannot start) the action FS_TERRAIN_ENAB: 0 disarm (the default), 1 POSHOLD (ALT_HOLD if refused), 2 SURFACE.
+  Data again, or another mode, clears it.
 `triggered(firmware)` is `Sub::any_failsafe_triggered` (Sub.h; 4.7: pilot input, GCS, battery, EKF, leak, sensor
 health; 4.5: pilot input, GCS, battery, EKF).
 """
@@ -52,6 +59,9 @@ FS_GCS_DISARM, FS_GCS_HOLD, FS_GCS_SURFACE = 2, 3, 4        # 1: warn only
 FS_PILOT_DISARM = 2
 GCS_CHECK_PERIOD = 0.3                                 # s: ArduSub's 3.3 Hz loop
 GCS_WARN_PERIOD = 30.0                                 # s between "heartbeat lost" warnings
+TERRAIN_TIMEOUT = 1.0                                  # s: FS_TERRAIN_TIMEOUT_MS (ArduSub/config.h)
+TERRAIN_CLEAR = 0.1                                    # s of successes that clear the failures
+FS_TERRAIN_HOLD, FS_TERRAIN_SURFACE = 1, 2             # FS_TERRAIN_ENAB; 0 (or any other): disarm
 PILOT_CHANNELS = 6                                     # `set_neutral_controls`: channels 1-6 to their trim
 ACTION_DISARM, ACTION_SURFACE = 2, 3
 PRIORITIES = (ACTION_DISARM, ACTION_SURFACE, 1, 0)     # Sub.h `_failsafe_priorities`, most severe first
@@ -94,6 +104,8 @@ class Failsafes:
         self._priority = math.inf                   # `_highest_failsafe_priority`
         self._low_since: float | None = None
         self._critical_since: float | None = None
+        self.terrain = False                        # `failsafe.terrain`
+        self._terrain_failures: tuple[float, float] | None = None   # (first, last) failure, s
         self._next = {"leak": t, "battery": t, "fast": t, "gcs": t}
 
     def heard_gcs(self, t: float) -> None:
@@ -127,6 +139,7 @@ class Failsafes:
         if t >= self._next["gcs"]:
             self._next["gcs"] = t + GCS_CHECK_PERIOD
             self._gcs_check(sub, t)
+            self._terrain_check(sub, t)
 
     def _pilot_input_check(self, sub, t: float) -> None:
         """`Sub::failsafe_pilot_input_check`, every loop."""
@@ -163,6 +176,45 @@ class Failsafes:
         elif action in (FS_GCS_HOLD, FS_GCS_SURFACE):
             if not sub.set_mode(MODES["ALT_HOLD" if action == FS_GCS_HOLD else "SURFACE"]):
                 sub.arm(False)
+
+    def terrain_status(self, data_ok: bool, t: float) -> None:
+        """`Sub::failsafe_terrain_set_status`: whether the terrain data a terrain leg needs was there this loop."""
+        if not data_ok:
+            first = self._terrain_failures[0] if self._terrain_failures else t
+            self._terrain_failures = (first, t)
+        elif self._terrain_failures and t - self._terrain_failures[1] > TERRAIN_CLEAR:
+            self._terrain_failures = None
+
+    def _terrain_check(self, sub, t: float) -> None:
+        """`Sub::failsafe_terrain_check`, at 3.3 Hz."""
+        failures = self._terrain_failures
+        trigger = sub.mode in (MODES["AUTO"], MODES["GUIDED"]) and failures is not None and \
+            failures[1] - failures[0] > TERRAIN_TIMEOUT
+        if trigger == self.terrain:
+            return
+        if not trigger:
+            self.terrain = False
+            return
+        sub.texts.append((CRITICAL, "Failsafe terrain triggered"))
+        self.terrain_event(sub, t)
+
+    def terrain_event(self, sub, t: float) -> None:
+        """`Sub::failsafe_terrain_on_event`: AUTO's recovery if the rangefinder is enabled and it can start, else the
+        action."""
+        self.terrain = True
+        if not sub.rangefinder.enabled or not sub.auto.recover_start(sub, t):
+            self.terrain_act(sub)
+
+    def terrain_act(self, sub) -> None:
+        """`Sub::failsafe_terrain_act` by FS_TERRAIN_ENAB."""
+        action = int(sub.params["FS_TERRAIN_ENAB"])
+        if action == FS_TERRAIN_HOLD:
+            if not sub.set_mode(MODES["POSHOLD"]):
+                sub.set_mode(MODES["ALT_HOLD"])
+        elif action == FS_TERRAIN_SURFACE:
+            sub.set_mode(MODES["SURFACE"])
+        else:
+            sub.arm(False)
 
     def _leak_check(self, sub, t: float, sensors: Readings) -> None:
         action = int(sub.params["FS_LEAK_ENABLE"])

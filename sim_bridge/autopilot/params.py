@@ -42,9 +42,10 @@ STREAM_DEFAULTS = {"RAW_SENS": 2, "EXT_STAT": 2, "RC_CHAN": 2, "RAW_CTRL": 0, "P
 
 # GUIDED's position and attitude controllers (`sim_bridge.modes.guided`), by their 4.5 names and units: ArduSub
 # 4.5.3's
-# defaults, read from its SITL. WPNAV_SPEED is AUTO's leg speed (read by a run flying the vehicle's mission).
+# defaults, read from its SITL. WPNAV_SPEED is AUTO's leg speed (read by a run flying the vehicle's mission), and
+# WPNAV_RADIUS its waypoints' radius (AC_WPNav's default, 2 m; `sim_bridge.modes.wpnav`).
 GUIDED_DEFAULTS = {
-    "WPNAV_SPEED": 100.0,
+    "WPNAV_SPEED": 100.0, "WPNAV_RADIUS": 200.0,
     "ANGLE_MAX": 4500.0,                                                 # cd
     "WPNAV_ACCEL": 250.0, "WPNAV_SPEED_UP": 250.0, "WPNAV_SPEED_DN": 150.0, "WPNAV_ACCEL_Z": 100.0,   # cm/s, cm/s/s
     "PSC_POSXY_P": 1.0, "PSC_VELXY_P": 6.0, "PSC_VELXY_I": 0.5, "PSC_VELXY_D": 0.0, "PSC_VELXY_IMAX": 1000.0,
@@ -66,6 +67,7 @@ GUIDED_DEFAULTS = {
 RENAMED_IN_4_7 = {
     "ANGLE_MAX": ("ATC_ANGLE_MAX", 100.0),
     "WPNAV_SPEED": ("WP_SPD", 100.0), "WPNAV_ACCEL": ("WP_ACC", 100.0), "WPNAV_SPEED_UP": ("WP_SPD_UP", 100.0),
+    "WPNAV_RADIUS": ("WP_RADIUS_M", 100.0),
     "WPNAV_SPEED_DN": ("WP_SPD_DN", 100.0), "WPNAV_ACCEL_Z": ("WP_ACC_Z", 100.0),
     "PSC_POSXY_P": ("PSC_NE_POS_P", 1.0), "PSC_VELXY_P": ("PSC_NE_VEL_P", 1.0), "PSC_VELXY_I": ("PSC_NE_VEL_I", 1.0),
     "PSC_VELXY_D": ("PSC_NE_VEL_D", 1.0), "PSC_VELXY_IMAX": ("PSC_NE_VEL_IMAX", 100.0),
@@ -161,6 +163,7 @@ def _table(names: Names, frame: int) -> list[Spec]:
         Spec("BATT_ARM_MAH", 0, INT32),                # mAh left below which arming is refused; 0: off
         Spec("LOG_DISARMED", 0, INT8),                 # the on-board log (`onboard_log.logger`): 0 from arming
         Spec("LOG_FILE_DSRMROT", 0, INT8),             # 1: a new file after each disarm
+        Spec("MIS_RESTART", 0, INT8),                  # AUTO resumes the mission (1: restarts it); AP_Mission
     ]
     specs += [Spec(*renamed(name, value, names.sysid == "MAV_SYSID"), REAL32)
               for name, value in GUIDED_DEFAULTS.items()]
@@ -181,8 +184,8 @@ def _failsafe_table(names: Names) -> list[Spec]:
     """The leak, EKF, battery-monitor and SURFACE parameters (`sim_bridge.autopilot.failsafes`,
     `sim_bridge.modes.surface`), with
     Sub's defaults: ArduSub/Parameters.cpp and defines.h (FS_LEAK_ENABLE 1 warn only, FS_EKF_ACTION 0 disabled,
-    SURFACE_DEPTH -10 cm), AP_BattMonitor_Params.cpp (BATT_LOW_VOLT 0 outside Copter: no battery failsafe by default,
-    BATT_LOW_TIMER 10 s), AC_WPNav's WPNAV_SPEED_UP (above) capped by PILOT_SPEED_UP."""
+    FS_TERRAIN_ENAB 0 disarm, SURFACE_DEPTH -10 cm), AP_BattMonitor_Params.cpp (BATT_LOW_VOLT 0 outside Copter: no
+    battery failsafe by default, BATT_LOW_TIMER 10 s), AC_WPNav's WPNAV_SPEED_UP (above) capped by PILOT_SPEED_UP."""
     specs = [
         Spec("FS_LEAK_ENABLE", 1, INT8),               # 0 off, 1 warn only, 2 SURFACE
         Spec("FS_EKF_ACTION", 0, INT8),                # 0 off, 1 warn only, 2 disarm
@@ -195,6 +198,7 @@ def _failsafe_table(names: Names) -> list[Spec]:
         Spec("BATT_FS_LOW_ACT", 0, INT8),              # Sub: 0 none, 1 warn, 2 disarm, 3 SURFACE
         Spec("BATT_FS_CRT_ACT", 0, INT8),
         Spec("SURFACE_DEPTH", -10.0, REAL32),          # cm (negative: below the surface)
+        Spec("FS_TERRAIN_ENAB", 0, INT8),              # AUTO's terrain failsafe: 0 disarm, 1 hold, 2 SURFACE
         Spec("PILOT_SPEED_UP", 500, INT16),            # cm/s (ArduSub/config.h PILOT_VELZ_MAX)
     ]
     specs += _rangefinder_table(names)

@@ -64,6 +64,7 @@ class Snapshot:
     unix_start: float                    # wall-clock epoch (s) of simulated time 0
     firmware: str
     mission_count: int = 0               # items of the stored mission, home's slot included
+    mission_current: tuple[int, int] = (0, MISSION_STATE_NOT_STARTED)  # (seq, MISSION_STATE) of AUTO's mission
     safety_on: bool = False              # the software safety switch: motor outputs not enabled
     initialised: bool = True             # `ap.initialised`
     local_position: bool = True          # the EKF has a horizontal position (LOCAL_POSITION_NED is sent)
@@ -218,10 +219,13 @@ def firmware_string(firmware: str) -> str:
 
 
 def mission_current(s: Snapshot):
-    """As ArduSub streams it: item 0 current, total = items past home, no mission until one is stored past home,
-    else not started (this vehicle has no AUTO mode to run it)."""
-    state = MISSION_STATE_NO_MISSION if s.mission_count <= 1 else MISSION_STATE_NOT_STARTED
-    return ENCODER.mission_current_encode(0, max(s.mission_count - 1, 0), state, 0)
+    """As ArduSub streams it (`GCS_MAVLINK::send_mission_current`, `mission_state`): the current navigation
+    command (0 before any), total = items past home, no mission until one is stored past home, else AUTO's mission
+    not started, active or complete (`sim_bridge.modes.auto`)."""
+    seq, state = s.mission_current
+    if s.mission_count <= 1:
+        state = MISSION_STATE_NO_MISSION
+    return ENCODER.mission_current_encode(seq, max(s.mission_count - 1, 0), state, 0)
 
 
 def home_position(s: Snapshot):

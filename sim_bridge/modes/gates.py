@@ -1,12 +1,13 @@
 """ArduSub's flight-mode numbers and the gates a mode change passes (`Sub::set_mode`, ArduSub/mode.cpp), in order:
 - a mode ArduSub does not have: "No such mode N" (`notify_no_such_mode`); one it has that this vehicle does not
-  fly (AUTO, CIRCLE, MOTOR_DETECT): "Flight mode change failed NAME";
+  fly (CIRCLE, MOTOR_DETECT): "Flight mode change failed NAME";
 - a mode that `requires_GPS()` (GUIDED, POSHOLD, AUTO, CIRCLE; ArduSub/mode.h) without `Sub::position_ok`:
   "Mode change failed: NAME requires position";
 - the mode's `init`: ALT_HOLD (`ModeAlthold::init`), SURFTRAK (`ModeSurftrak::init` runs ALT_HOLD's first) and, in
   4.5, SURFACE need `Sub::control_check_barometer` (a depth
   sensor found at boot and no depth-sensor failsafe; its own warning first); 4.7's SURFACE never refuses (it rises
-  on SFC_NOBARO_THST instead, PR #29996); a refused init adds "Flight mode change failed NAME".
+  on SFC_NOBARO_THST instead, PR #29996); AUTO (`ModeAuto::init`, ArduSub/mode_auto.cpp) needs a mission past
+  home's slot (`AP_Mission::present`), armed or not; a refused init adds "Flight mode change failed NAME".
 Every text is a WARNING. The names are the ones this bridge has always reported (upper case, as 4.5's
 `Mode::name()`; newer masters spell some in title case: not checked for 4.7).
 """
@@ -17,7 +18,7 @@ MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "CIRC
          "POSHOLD": 16, "MANUAL": 19, "MOTOR_DETECT": 20, "SURFTRAK": 21}
 MODE_NAMES = {number: name for name, number in MODES.items()}
 SUPPORTED_MODES = frozenset({MODES[m] for m in ("STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "MANUAL", "GUIDED",
-                                                "SURFACE", "SURFTRAK")})
+                                                "SURFACE", "SURFTRAK", "AUTO")})
 GUIDED_FLAG_MODES = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 REQUIRES_POSITION = frozenset({MODES[m] for m in ("GUIDED", "AUTO", "POSHOLD", "CIRCLE")})
 # Modes the depth-sensor failsafe leaves for MANUAL (`Sub::failsafe_sensors_check`): ALT_HOLD, SURFACE, and those
@@ -37,8 +38,10 @@ def barometer_refusal(depth_present: bool, depth_failsafe: bool) -> str | None:
     return None
 
 
-def refusal(mode: int, firmware: str, position_ok: bool, depth_present: bool, depth_failsafe: bool) -> list[str]:
-    """The warnings `Sub::set_mode` sends when it refuses `mode`, in order; empty when the mode can be entered."""
+def refusal(mode: int, firmware: str, position_ok: bool, depth_present: bool, depth_failsafe: bool,
+            mission_present: bool = False) -> list[str]:
+    """The warnings `Sub::set_mode` sends when it refuses `mode`, in order; empty when the mode can be entered.
+    `mission_present`: a mission is stored past home's slot (AUTO's)."""
     name = MODE_NAMES.get(mode)
     if name is None:
         return [f"No such mode {mode}"]
@@ -50,4 +53,6 @@ def refusal(mode: int, firmware: str, position_ok: bool, depth_present: bool, de
         text = barometer_refusal(depth_present, depth_failsafe)
         if text is not None:
             return [text, f"Flight mode change failed {name}"]
+    if mode == MODES["AUTO"] and not mission_present:
+        return [f"Flight mode change failed {name}"]
     return []

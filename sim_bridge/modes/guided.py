@@ -185,6 +185,18 @@ class Guided:
         self.terrain_range = distance
         return True
 
+    def track(self, position, velocity, t: float, terrain_range: float | None = None) -> None:
+        """A waypoint navigator's target, every loop (AUTO's legs, `sim_bridge.modes.auto`, as AC_WPNav hands
+        AC_PosControl its position and velocity): position NED m (None: the target kept), velocity NED m/s fed
+        forward; with `terrain_range` the depth follows the bottom `axes` is given, as a terrain target's does."""
+        if position is not None:
+            self.position = np.array(position, dtype=float)
+        self.velocity = np.asarray(velocity, dtype=float)
+        self.acceleration = np.zeros(3)
+        self.submode = POSVEL
+        self.updated = t
+        self.terrain_range = terrain_range
+
     def _set(self, type_mask: int, position, velocity, acceleration, eta, t: float) -> bool:
         """The sub-mode the type_mask selects (`guided_set_destination_posvel`, `guided_set_velocity`,
         `guided_set_destination`), with its targets; False for a combination ArduSub drops."""
@@ -251,7 +263,7 @@ class Guided:
             + self.acceleration[0] * 100.0
         accel_e = pid_e.update(error_e * scale + (self.velocity[1] - v_ned[1]) * 100.0, *gains) \
             + self.acceleration[1] * 100.0
-        angle_max = math.radians(p["ANGLE_MAX"] / 100.0)
+        angle_max = max(math.radians(p["ANGLE_MAX"] / 100.0), 1e-6)   # (0 would divide by zero: no lean)
         accel_max = GRAVITY_CMSS * math.tan(angle_max)
         norm = math.hypot(accel_n, accel_e)
         if norm > accel_max:
