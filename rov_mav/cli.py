@@ -28,6 +28,8 @@ SUBCOMMANDS = {   # name: (module, summary)
     "sim-bridge": ("rov_mav.commands.sim_bridge", "run a simulated ArduSub BlueROV2 Heavy over MAVLink"),
     "analyze": ("rov_mav.commands.analyze", "review a dive from a run's log folder or any ArduSub .tlog"),
     "identify": ("rov_mav.commands.identify", "fit the vehicle model to run logs and write a vehicle file"),
+    "autotune": ("rov_mav.commands.autotune",
+                 "tune the law for the vehicle on the link: excite, identify, tune, check, keep"),
     "missions": ("rov_mav.commands.missions", "list the shipped missions and scenario sets (a name works as a file)"),
     "vehicles": ("rov_mav.commands.vehicles", "list the shipped vehicle files (--vehicle NAME)"),
 }

@@ -91,3 +91,13 @@ def test_without_acceleration_the_swarm_does_not_move():
 def test_bad_bounds_are_refused(lower, upper):
     with pytest.raises(ValueError):
         minimize(sphere, lower, upper)
+
+
+def test_a_callback_that_says_stop_ends_the_search_with_the_iterations_run():
+    full = minimize(sphere, np.full(4, -5.0), np.full(4, 10.0), PSOOptions(particles=20, iterations=50), seed=3)
+    seen = []
+    stopped = minimize(sphere, np.full(4, -5.0), np.full(4, 10.0), PSOOptions(particles=20, iterations=50), seed=3,
+                       callback=lambda it, best: seen.append(it) or it >= 7)
+    assert seen == list(range(1, 8)) and stopped.cost_history.size == 7 and stopped.position_history.shape == (7, 4)
+    np.testing.assert_array_equal(stopped.cost_history, full.cost_history[:7])
+    assert stopped.best_cost == full.cost_history[6] > full.best_cost

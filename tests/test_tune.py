@@ -223,3 +223,13 @@ def test_tune_command_reports_a_bad_bounds_file_in_one_line(tmp_path, capsys):
     bounds.write_text("lower: {k1: [1, 1, 1, 1, 1, 1]}\n")
     assert cli.main(["tune", str(MISSIONS / "line.yaml"), "--bounds-file", str(bounds)]) == 2
     assert capsys.readouterr().err.strip() == f"rov-mav tune: error: {bounds}: lower.k2: missing"
+
+
+def test_a_tune_with_a_budget_stops_when_it_is_spent_and_keeps_the_best_so_far(tmp_path):
+    gains = tmp_path / "gains.yaml"
+    assert cli.main(["tune", str(MISSIONS / "line.yaml"), "--particles", "8", "--iterations", "10000", "--duration",
+                     "4", "--budget", "1.5", "--out", str(gains), "--rerun", "off"]) == 0
+    comparison = json.loads((tmp_path / "comparison.json").read_text())
+    history = comparison["best_cost_per_iteration"]
+    assert 1 <= len(history) < 10000 and comparison["elapsed_s"] < 10.0
+    assert comparison["objective"]["tuned"] == pytest.approx(history[-1], rel=1e-9)

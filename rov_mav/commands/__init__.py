@@ -1,6 +1,7 @@
 """Subcommands of the rov-mav CLI, one module each, and what they share.
 
 - analyze: review a dive afterwards
+- autotune: excite, identify, tune and check the law on the vehicle, in one command
 - arguments: command-line values checked where they enter
 - bench: which controller tracks best, where, and how sure we are
 - common: options shared by the commands that fly a mission

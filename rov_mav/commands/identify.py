@@ -282,6 +282,11 @@ def _load(args, prior):
 
 
 def main(args: argparse.Namespace) -> int:
+    return fitted_vehicle(args)[0]
+
+
+def fitted_vehicle(args: argparse.Namespace):
+    """The command's work: (exit status, the identification result when a vehicle file was written, else None)."""
     from rov_mav.config import ConfigError
     from rov_mav.model.vehicle import load_vehicle, save_vehicle
     from rov_mav.offline.identify.identification import WINDOW, IdentificationError, identify
@@ -297,12 +302,12 @@ def main(args: argparse.Namespace) -> int:
         comparisons = _checked(runs, prior, args.net_buoyancy, window, dofs)
     except (ConfigError, IdentificationError) as exc:
         print(f"rov-mav identify: error: {exc}", file=sys.stderr)
-        return 2
+        return 2, None
     if refusal := _refusal(result, comparisons):
         print(_report(result, args.logs, None, window), flush=True)
         print("\n".join(_check_lines(comparisons)), flush=True)
         print(f"rov-mav identify: refused: {refusal}", file=sys.stderr)
-        return 1
+        return 1, None
     fitted = sum(e.status == "fitted" for e in result.estimates)
     header = (f"{prior.name}, identified by rov-mav identify from {', '.join(args.logs)}: {fitted} parameters "
               f"fitted, the rest from {args.vehicle or 'the shipped model'}\n"
@@ -310,4 +315,4 @@ def main(args: argparse.Namespace) -> int:
     save_vehicle(replace(result.vehicle, name=f"{prior.name}, identified"), args.out, header)
     print(_report(result, args.logs, args.out, window), flush=True)
     print("\n".join(_check_lines(comparisons)), flush=True)
-    return 0
+    return 0, result

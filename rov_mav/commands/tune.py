@@ -77,6 +77,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="swarm size (default 100)")
     g.add_argument("--iterations", type=count(MAX_ITERATIONS), default=defaults.iterations,
                    help="iterations; each evaluates the whole swarm (default 100)")
+    g.add_argument("--budget", type=number(0.0, 1e6, low_open=True), metavar="S",
+                   help="wall seconds the search may take: it ends after the last iteration that fits, with the best "
+                        "found so far (default: all the iterations)")
     g.add_argument("--seed", type=seed, default=0, help="seed of the swarm's random numbers (default 0)")
     g.add_argument("--w", type=coefficient, default=defaults.w, help=f"inertia, Eq. 2.30 (default {defaults.w})")
     g.add_argument("--c1", type=coefficient, default=defaults.c1,
@@ -191,12 +194,18 @@ def _search(args: argparse.Namespace, problem, options, lower, upper, start, hea
     else:
         backend = tuning.ThreadBackend(args.threads)
     print(heading)
+    started = time.perf_counter()
     with backend, progress_bar(total=options.iterations, desc="tune", unit="it") as bar:
-        def progress(iteration: int, best: float) -> None:
+        def progress(iteration: int, best: float) -> bool:
             bar.set_postfix(best=f"{best:.5g}", refresh=False)
             bar.update(1)
+            spent = time.perf_counter() - started
+            return args.budget is not None and spent * (iteration + 1) / iteration > args.budget
 
         result = tuning.tune(problem, lower, upper, options, args.seed, backend, progress)
+        if result.cost_history.size < options.iterations:
+            bar.write(f"the --budget of {args.budget:g} s is spent: {result.cost_history.size} of "
+                      f"{options.iterations} iterations run")
         return result, problem.costs(np.stack([start.gains, result.best_position]), backend)
 
 

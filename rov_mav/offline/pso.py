@@ -51,10 +51,11 @@ class PSOResult:
 
 
 def minimize(objective: Objective, lower: np.ndarray, upper: np.ndarray, options: PSOOptions = PSOOptions(),
-             seed: int = 0, callback: Callable[[int, float], None] | None = None) -> PSOResult:
+             seed: int = 0, callback: Callable[[int, float], bool | None] | None = None) -> PSOResult:
     """Minimise `objective` over the box [lower, upper] (D,); the same seed gives the same run.
 
-    callback(iteration, best_cost) is called after each iteration (e.g. a progress bar)."""
+    callback(iteration, best_cost) is called after each iteration (e.g. a progress bar); when it returns True the
+    search ends there (a time budget spent), with the best found so far and the history of the iterations run."""
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if lower.shape != upper.shape or lower.ndim != 1 or np.any(upper <= lower):
         raise ValueError("bounds must be two (D,) arrays with lower < upper")
@@ -80,6 +81,7 @@ def minimize(objective: Objective, lower: np.ndarray, upper: np.ndarray, options
         p_best[better], p_cost[better] = x[better], cost[better]
         best = int(np.argmin(p_cost))
         costs[it], positions[it] = p_cost[best], p_best[best]
-        if callback is not None:
-            callback(it + 1, float(costs[it]))
+        if callback is not None and callback(it + 1, float(costs[it])):
+            costs, positions = costs[:it + 1], positions[:it + 1]
+            break
     return PSOResult(positions[-1].copy(), float(costs[-1]), costs, positions)

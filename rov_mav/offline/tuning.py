@@ -177,7 +177,7 @@ def build_problem(mission: Mission, settings: ControllerSettings, model: Vehicle
 
 
 def tune(problem: TuningProblem, lower: np.ndarray, upper: np.ndarray, options: pso.PSOOptions, seed: int,
-         backend: Backend, callback: Callable[[int, float], None] | None = None) -> pso.PSOResult:
+         backend: Backend, callback: Callable[[int, float], bool | None] | None = None) -> pso.PSOResult:
     """PSO of the controller's tuned gains (e.g. [k1 | k2]) in the box [lower, upper] on `problem` (Eq. 2.33),
     evaluated on `backend`."""
     return pso.minimize(lambda gains: problem.costs(gains, backend), lower, upper, options, seed, callback)

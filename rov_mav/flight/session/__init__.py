@@ -9,4 +9,5 @@
 - vehicle_events: the vehicle's own failsafes and a reboot, which end a run
 - vehicle_frame: the vehicle's frame and where its motors are, held to the vehicle file
 - vehicle_mission: the mission stored on the vehicle, downloaded and read as a plan's items
+- vehicle_position: where the vehicle is now, asked once without flying it
 """

@@ -1,0 +1,152 @@
+"""`rov-mav autotune` end to end against a `rov-mav sim-bridge` process whose vehicle is not the shipped model (added
+mass and damping 40 % above it): the whole procedure (plan, excite, identify, tune, check, keep) with what each step
+writes, the fit nearer the plant than the prior, the vehicle inside its box and left safe; a dry run that flies
+nothing; an abort in the excitation (a limit crossed) and a fit that cannot be made, each stopping the
+procedure at its step with the vehicle safe and nothing of the later steps written."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bridge_helpers import ROV_MAV
+from run_helpers import bridge_with_checker, checker, fresh
+
+from rov_mav.model.vehicle import load_vehicle, save_vehicle
+
+pytestmark = pytest.mark.process
+SPEEDUP = 4.0          # the bridge's: the runner's 50 Hz and the vehicle's hold it on a loaded 2-core machine
+WAIT = 600.0           # wall s for the whole procedure (about 100 s on an idle machine)
+HEAVIER = 1.4          # the plant's added mass and damping against the shipped model's
+# the surge, heave and yaw parts of the shipped identify mission (67 s): enough for the fit and its held-back check
+EXCITATION = """name: identify-short
+description: surge, heave and yaw from the shipped identify mission
+start: {position: [0.0, 0.0, 1.5], heading: 0 deg}
+path:
+  - {goto: [1.5, 0.0, 1.5], speed: 0.15}
+  - {goto: [0.0, 0.0, 1.5], speed: 0.5}
+  - {excite: surge, amplitude: 0.4, band: [0.1, 0.6], duration: 15}
+  - {excite: heave, amplitude: 0.3, band: [0.1, 0.6], duration: 15}
+  - {excite: yaw, amplitude: 30 deg, band: [0.1, 0.6], duration: 15}
+limits: {max_depth: 3.0, max_tracking_error: 1.0, max_thrust: 40.0}
+"""
+TOO_FAST = """name: too-fast
+description: a leg no BlueROV2 can follow (1.5 m/s)
+start: {position: [0.0, 0.0, 1.5], heading: 0 deg}
+path:
+  - {goto: [2.0, 0.0, 1.5], speed: 1.5}
+limits: {max_depth: 3.0, max_tracking_error: 1.0, max_thrust: 40.0}
+"""
+TOO_SHORT = """name: too-short
+description: a hold, nothing a fit can be made from
+start: {position: [0.0, 0.0, 1.5], heading: 0 deg}
+path:
+  - {hold: 8}
+limits: {max_depth: 3.0, max_tracking_error: 1.0, max_thrust: 40.0}
+"""
+
+
+def plant(directory: Path) -> tuple[Path, object]:
+    shipped = load_vehicle()
+    heavier = replace(shipped, name="heavier", added_mass=shipped.added_mass * HEAVIER,
+                      linear_damping=shipped.linear_damping * HEAVIER,
+                      quadratic_damping=shipped.quadratic_damping * HEAVIER)
+    path = directory / "plant.yaml"
+    save_vehicle(heavier, path)
+    return path, heavier
+
+
+def autotune(port: int, out: Path, excitation: str, *args: str) -> subprocess.CompletedProcess:
+    mission = out.parent / f"{out.name}-excitation.yaml"
+    mission.write_text(excitation)
+    return subprocess.run([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{port}", "--excitation", str(mission),
+                           "--box", "2.5,2.5,1.5", "--out", str(out), *args], capture_output=True, text=True,
+                          timeout=WAIT)
+
+
+def left_safe(port: int) -> None:
+    """The vehicle as a run's safe stop leaves it: disarmed, every output neutral."""
+    gcs = checker(port, SPEEDUP)
+    try:
+        heartbeat = fresh(gcs, "HEARTBEAT")
+        servo = fresh(gcs, "SERVO_OUTPUT_RAW")
+    finally:
+        gcs.close()
+    assert not heartbeat.base_mode & 128, "left armed"
+    assert [getattr(servo, f"servo{i}_raw") for i in range(1, 9)] == [1500] * 8
+
+
+def track(log: Path) -> np.ndarray:
+    """Where the vehicle was at each tick: the bridge's default navigation is ideal, so its position is the truth
+    (and it puts no SIM_STATE on the link)."""
+    with open(log / "ticks.csv") as f:
+        rows = list(csv.DictReader(f))
+    return np.array([[float(r[c]) for c in ("x", "y", "z")] for r in rows])
+
+
+def test_the_whole_procedure_fits_the_vehicle_tunes_checks_and_keeps_inside_its_box(tmp_path):
+    plant_file, heavier = plant(tmp_path)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
+                                               speedup=SPEEDUP)
+    out = tmp_path / "autotune"
+    with bridge:
+        done = autotune(bridge.port, out, EXCITATION, "--budget", "5", "--particles", "10")
+        left_safe(checker_port)
+    assert done.returncode in (0, 4), done.stdout[-3000:] + done.stderr
+    for step in range(1, 7):
+        assert f"step {step} of 6" in done.stdout
+    fitted, shipped = load_vehicle(out / "vehicle.yaml"), load_vehicle()
+    # surge and heave were excited: their added mass and damping come out nearer the plant than the prior was
+    # (each 29 % off); measured 0.34 of the prior's error at 4x on a loaded machine (surge added mass the worst)
+    def error(vehicle):
+        return np.mean([abs(getattr(vehicle, group)[dof] / getattr(heavier, group)[dof] - 1.0)
+                        for group in ("added_mass", "quadratic_damping") for dof in (0, 2)])
+    assert error(fitted) < 0.5 * error(shipped)
+    plan = json.loads((out / "plan.json").read_text())
+    low, high = np.array(plan["box"]["low"]), np.array(plan["box"]["high"])
+    for flight in ("excite", "check-old", "check-new"):
+        flown = track(out / flight)
+        assert np.all(np.isfinite(flown)) and len(flown) > 1000
+        outside = np.maximum(np.max(low - flown, axis=1), np.max(flown - high, axis=1))
+        assert outside.max() < plan["max_excursion_m"], f"{flight} left the box by {outside.max():.2f} m"
+    for name in ("report.md", "fit.png", "check.png", "tune/convergence.png", "tuned-gains.yaml"):
+        assert (out / name).stat().st_size > 0
+    assert (out / "gains.yaml").exists() == (done.returncode == 0)
+
+
+def test_a_dry_run_plans_and_checks_the_vehicle_and_flies_nothing(tmp_path):
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
+    out = tmp_path / "autotune"
+    with bridge:
+        done = autotune(bridge.port, out, EXCITATION, "--dry-run")
+        left_safe(checker_port)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["check.yaml", "excite.yaml", "plan.json", "vehicle-check.yaml"]
+    assert "step 2" not in done.stdout
+
+
+def test_a_limit_crossed_in_the_excitation_stops_the_procedure_there(tmp_path):
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
+    out = tmp_path / "autotune"
+    with bridge:
+        done = autotune(bridge.port, out, TOO_FAST)
+        left_safe(checker_port)
+    assert done.returncode == 1, done.stdout[-3000:] + done.stderr
+    assert "stopped at step 2 of 6 (excite)" in done.stderr and "tracking error" in done.stdout
+    assert not (out / "vehicle.yaml").exists() and not (out / "check-old").exists()
+
+
+def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
+    out = tmp_path / "autotune"
+    with bridge:
+        done = autotune(bridge.port, out, TOO_SHORT)
+        left_safe(checker_port)
+    assert done.returncode == 2, done.stdout[-3000:] + done.stderr
+    assert "stopped at step 3 of 6 (identify)" in done.stderr
+    assert (out / "excite" / "ticks.csv").exists() and not (out / "vehicle.yaml").exists()
