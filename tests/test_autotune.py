@@ -1,14 +1,16 @@
 """`rov-mav autotune` end to end against a `rov-mav sim-bridge` process whose vehicle is not the shipped model (added
-mass and damping 40 % above it): the whole procedure (plan, excite, identify, tune, check, keep) with what each step
-writes, the fit nearer the plant than the prior, the vehicle inside its box and left safe; a dry run that flies
-nothing; an abort in the excitation (a limit crossed) and a fit that cannot be made, each stopping the
+mass and damping 40 % above it): the whole procedure (plan, excite, identify, tune while holding station, check, keep)
+with what each step writes, the fit nearer the plant than the prior, the vehicle inside its box and left safe; a dry run that flies
+nothing; an abort in the excitation (a limit crossed), Ctrl-C while the vehicle holds station for the tune, and a fit that cannot be made, each stopping the
 procedure at its step with the vehicle safe and nothing of the later steps written."""
 
 from __future__ import annotations
 
 import csv
 import json
+import signal
 import subprocess
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -109,9 +111,9 @@ def test_the_whole_procedure_fits_the_vehicle_tunes_checks_and_keeps_inside_its_
     assert error(fitted) < 0.5 * error(shipped)
     plan = json.loads((out / "plan.json").read_text())
     low, high = np.array(plan["box"]["low"]), np.array(plan["box"]["high"])
-    for flight in ("excite", "check-old", "check-new"):
+    for flight in ("excite", "station", "check-old", "check-new"):
         flown = track(out / flight)
-        assert np.all(np.isfinite(flown)) and len(flown) > 1000
+        assert np.all(np.isfinite(flown)) and len(flown) > 100
         outside = np.maximum(np.max(low - flown, axis=1), np.max(flown - high, axis=1))
         assert outside.max() < plan["max_excursion_m"], f"{flight} left the box by {outside.max():.2f} m"
     for name in ("report.md", "fit.png", "check.png", "tune/convergence.png", "tuned-gains.yaml"):
@@ -150,3 +152,34 @@ def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
     assert done.returncode == 2, done.stdout[-3000:] + done.stderr
     assert "stopped at step 3 of 6 (identify)" in done.stderr
     assert (out / "excite" / "ticks.csv").exists() and not (out / "vehicle.yaml").exists()
+
+
+def test_ctrl_c_while_the_vehicle_holds_station_for_the_tune_stops_both_and_leaves_it_safe(tmp_path):
+    plant_file, _ = plant(tmp_path)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
+                                               speedup=SPEEDUP)
+    out = tmp_path / "autotune"
+    mission = tmp_path / "excitation.yaml"
+    mission.write_text(EXCITATION)
+    with bridge:
+        started = subprocess.Popen([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{bridge.port}",
+                                    "--excitation", str(mission), "--box", "2.5,2.5,1.5", "--out", str(out),
+                                    "--budget", "600"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        seen, deadline = [], time.monotonic() + WAIT
+        try:
+            for line in started.stdout:
+                seen.append(line)
+                if "armed in MANUAL" in line and any("step 4 of 6" in s for s in seen) or time.monotonic() > deadline:
+                    break
+            time.sleep(2.0)                                  # the tune is running, the vehicle holding
+            started.send_signal(signal.SIGINT)
+            seen.append(started.communicate(timeout=WAIT)[0])
+        finally:
+            if started.poll() is None:
+                started.kill()
+        left_safe(checker_port)
+    output = "".join(seen)
+    assert any("step 4 of 6" in s for s in seen), output[-3000:]
+    assert started.returncode == 130, output[-3000:]
+    assert "stopping: stopped by SIGINT" in output and (out / "station" / "ticks.csv").exists()
+    assert not (out / "check-old").exists() and not (out / "gains.yaml").exists()

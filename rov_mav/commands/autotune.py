@@ -7,7 +7,10 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import signal
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +37,7 @@ Tune the controller for the vehicle on the link, in the water, in six steps, eac
               predicts worse than the prior on held-back data, or that no vehicle can be, stops here
   4 tune      PSO of the gains on the fitted vehicle, on the check square, robust to the fit's uncertainty (the
               plant scaled by the widest relative 95 % interval of its fitted mass and damping, 5-30 %), within
-              --budget seconds; the vehicle waits disarmed, as a run leaves it
+              --budget seconds (one thread), while a run holds the vehicle where the check starts
   5 check     the check square (about 64 s) flown twice, old gains then new
   6 keep      the new gains kept only when their position error is at least --margin smaller; the vehicle file,
               the gains, the logs and report.md in --out
@@ -53,6 +56,8 @@ kept); otherwise the status of the step that stopped it (a run's, identify's, tu
 
 STEPS = ("plan", "excite", "identify", "tune", "check", "keep")
 NOT_BETTER = 4                   # the procedure completed, the new gains were not better (a run's 3 is a handover)
+HOLD_SLACK = 120.0               # s the station hold lasts beyond the tune's budget (its end is the tune's)
+POLL = 0.2                       # wall s between looks at the tune and the hold
 UNCERTAINTY = (0.05, 0.3)        # the plant scale's spread for the tune: at least 5 %, at most 30 %
 
 
@@ -94,6 +99,7 @@ def _box(text: str) -> np.ndarray:
 
 
 def main(args: argparse.Namespace) -> int:
+    signal.signal(signal.SIGTERM, _interrupted)      # as Ctrl-C: the step's flight stops safely, its children too
     out = require_writable(args.out, folder=True, option="--out")
     out.mkdir(parents=True, exist_ok=True)
     excite, check, hold = _plan(args, out)
@@ -118,6 +124,10 @@ def main(args: argparse.Namespace) -> int:
         runs[label] = json.loads((out / f"check-{label}" / "metrics.json").read_text())
     _step(6, "keep")
     return _keep(args, out, runs, fitted)
+
+
+def _interrupted(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 def _step(n: int, text: str) -> None:
@@ -162,7 +172,7 @@ def _plan(args: argparse.Namespace, out: Path) -> tuple[Path, Path, Path]:
           f"{np.degrees(pose[3]):.0f} deg\n  box: {box.describe()}\n"
           f"  excite: {excitation.name} moved to start at north {start[0]:.2f}, east {start[1]:.2f}, depth "
           f"{start[2]:.2f} m: {excitation.duration:.0f} s ({paths[0]})\n"
-          f"  tune: at most {args.budget:g} s, the vehicle disarmed meanwhile\n"
+          f"  tune: at most {args.budget:g} s, the vehicle holding station meanwhile where the check starts\n"
           f"  check: a {square['description'][2:]} at {square['start']['position'][2]:.2f} m, twice: "
           f"{check_duration:.0f} s each ({paths[1]})\n"
           f"  limits: each run stops {MAX_EXCURSION:g} m from its reference or {moved['limits']['max_depth']:g} m "
@@ -209,19 +219,45 @@ def _uncertainty(fitted) -> float:
 
 
 def _tune(args: argparse.Namespace, out: Path, check: Path, spread: float) -> int:
-    from rov_mav import cli
+    """Step 4: `rov-mav tune` in a process of its own (one thread) while a `rov-mav run` holds the vehicle where the
+    check starts; the hold ends (its safe stop) when the tune does, or stops the tune when it ends first."""
+    from rov_mav.mission.autotune_plan import station_hold
 
     scenarios = out / "scenarios.yaml"
     scenarios.write_text(yaml.safe_dump({
         "description": f"the fitted vehicle and plants {spread:.0%} lighter and heavier (its fit's uncertainty)",
         "scenarios": [{"name": "fitted"}, {"name": "lighter", "plant_scale": round(1.0 - spread, 4)},
                       {"name": "heavier", "plant_scale": round(1.0 + spread, 4)}]}, sort_keys=False))
+    hold = out / "station.yaml"
+    hold.write_text(yaml.safe_dump(station_hold(yaml.safe_load(check.read_text()), args.budget + HOLD_SLACK),
+                                   sort_keys=False, default_flow_style=None))
     argv = ["tune", str(check), "--vehicle", str(out / "vehicle.yaml"), "--controller", args.controller,
             "--scenarios", str(scenarios), "--particles", str(args.particles), "--iterations", "100000",
             "--budget", f"{args.budget:g}", "--out", str(out / "tuned-gains.yaml"), "--plot", str(out / "tune"),
-            "--rerun", "off"]
-    argv += ["--gains", args.gains] if args.gains else []
-    return cli.main(argv + (["--cluster", args.cluster] if args.cluster else []))
+            "--rerun", "off", "--threads", "1", *(["--gains", args.gains] if args.gains else []),
+            *(["--cluster", args.cluster] if args.cluster else [])]
+    holding = _child(_run_args(args, hold, args.gains, str(out / "vehicle.yaml")) + ["--log", str(out / "station")])
+    tuning = None
+    try:
+        tuning = _child(argv)
+        while tuning.poll() is None and holding.poll() is None:
+            time.sleep(POLL)
+        if tuning.poll() is None:
+            print(f"  the station hold ended first (exit {holding.returncode}): the tune is stopped", flush=True)
+            return holding.returncode or 1
+        return tuning.returncode
+    finally:
+        for child in (tuning, holding):
+            if child is not None and child.poll() is None:
+                child.send_signal(signal.SIGINT)
+        for child in (tuning, holding):
+            if child is not None:
+                child.wait()
+
+
+def _child(argv: list[str]) -> subprocess.Popen:
+    """`rov-mav ARGV` as a process of its own, its output on ours."""
+    return subprocess.Popen([sys.executable, "-m", "rov_mav.cli", *argv])
 
 
 def _keep(args: argparse.Namespace, out: Path, runs: dict, fitted) -> int:

@@ -20,6 +20,7 @@ SURFACE_CLEARANCE = 0.3   # m of water the excitation keeps above the vehicle at
 CHECK_SPEED = 0.2         # m/s along the check square's sides
 CHECK_MARGIN = 0.5        # m between the check square and the box's sides
 CHECK_TURN = 4.0          # s: each corner's hold while the vehicle turns to the next side
+DRY_RUN_TRACKING = 100.0  # m: the dry run's tracking limit (a vehicle not flown drifts)
 HOLD_CHECK = 5.0          # s: the dry run's hold at the excitation's start
 SAMPLES = 0.1             # s between the reference samples a mission is measured at
 
@@ -102,11 +103,20 @@ def check_leg(box: Box) -> dict:
 
 
 def hold_at_start(moved: dict) -> dict:
-    """A HOLD_CHECK s hold at the excitation's start, for the dry run that checks the vehicle (the vehicle does not
-    move in a dry run, so the excitation itself would cross the tracking limit)."""
+    """A HOLD_CHECK s hold at the excitation's start, for the dry run that checks the vehicle. Nothing is flown in a
+    dry run, so the vehicle keeps drifting where the water takes it (and the excitation itself would cross the
+    tracking limit): its tracking limit is DRY_RUN_TRACKING, the depth limit the box's."""
     return {"name": "autotune_vehicle_check", "description": "a hold at the excitation's start",
             "start": copy.deepcopy(moved["start"]), "ramp_time": 1.0, "path": [{"hold": HOLD_CHECK}],
-            "limits": dict(moved["limits"])}
+            "limits": {**moved["limits"], "max_tracking_error": DRY_RUN_TRACKING}}
+
+
+def station_hold(square: dict, duration: float) -> dict:
+    """A hold of `duration` s where the check square starts (the middle of the box's south-west part, at its middle
+    depth): where the vehicle waits, flown, while the gains are tuned."""
+    return {"name": "autotune_station", "description": "holding station while the gains are tuned",
+            "start": copy.deepcopy(square["start"]), "ramp_time": 1.0, "path": [{"hold": round(duration, 1)}],
+            "limits": dict(square["limits"])}
 
 
 def _shifted(point, shift: np.ndarray) -> list[float]:
