@@ -344,6 +344,7 @@ def _rewind(lines: list[str]) -> list[str]:
 @pytest.mark.parametrize("case, expected", [
     ("missing", "not a directory"),
     ("empty", "not a run's log folder"),
+    ("header only", "0 tick(s): the run flew nothing to fit"),
     ("column", "no column battery_voltage"),
     ("garbled", "only 10.0 s of flight"),          # read as far as it goes (a warning says where it stopped)
     ("rewound", "line 702: time goes back"),
@@ -355,6 +356,7 @@ def test_bad_or_short_logs_are_refused_in_one_line(case, expected, clean_log, tm
     logs = {
         "missing": lambda: tmp_path / "nowhere",
         "empty": lambda: (tmp_path / "empty").mkdir() or tmp_path / "empty",
+        "header only": lambda: _log_like(clean_log, tmp_path / "header", rows=slice(0, 0)),
         "column": lambda: _log_like(clean_log, tmp_path / "column", edit=_drop_column),
         "garbled": lambda: _log_like(clean_log, tmp_path / "garbled", edit=_garble),
         "rewound": lambda: _log_like(clean_log, tmp_path / "rewound", edit=_rewind),

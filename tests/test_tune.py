@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 
 import numpy as np
 import pyarrow as pa
@@ -233,3 +234,11 @@ def test_a_tune_with_a_budget_stops_when_it_is_spent_and_keeps_the_best_so_far(t
     history = comparison["best_cost_per_iteration"]
     assert 1 <= len(history) < 10000 and comparison["elapsed_s"] < 10.0
     assert comparison["objective"]["tuned"] == pytest.approx(history[-1], rel=1e-9)
+
+
+def test_a_cluster_without_dask_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)        # as on a machine without the cluster extra
+    assert cli.main(["tune", str(MISSIONS / "line.yaml"), "--particles", "4", "--iterations", "1", "--duration", "2",
+                     "--cluster", "local:1", "--out", str(tmp_path / "g.yaml"), "--rerun", "off"]) == 2
+    assert capsys.readouterr().err.strip() == ("rov-mav tune: error: --cluster needs Dask, which is not installed: "
+                                               "pip install 'rov-mav[cluster]'")

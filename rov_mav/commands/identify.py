@@ -168,6 +168,8 @@ def load_run(directory: str):
     missing = [c for c in needed if c not in ticks]
     if missing:
         raise ConfigError(f"{path / TICKS}: no column {missing[0]} (not a run log, or none at all)")
+    if ticks["t"].size < 2:
+        raise ConfigError(f"{path / TICKS}: {ticks['t'].size} tick(s): the run flew nothing to fit")
     for c in needed:
         if not np.all(np.isfinite(ticks[c])):
             raise ConfigError(f"{path / TICKS}: column {c} holds a value that is not a finite number")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from rov_mav.config import ConfigError
 from rov_mav.offline.tuning import Batch, TuningProblem
 
 
@@ -21,10 +22,14 @@ class DaskBackend:
     """A `tuning.Backend` on Dask workers."""
 
     def __init__(self, address: str):
-        from dask.distributed import (  # optional dependency: imported only when used
-            Client,
-            LocalCluster,
-        )
+        try:
+            from dask.distributed import (  # optional dependency: imported only when used
+                Client,
+                LocalCluster,
+            )
+        except ImportError:
+            raise ConfigError("--cluster needs Dask, which is not installed: pip install 'rov-mav[cluster]'") \
+                from None
 
         self._cluster = None
         if address.startswith("local:"):

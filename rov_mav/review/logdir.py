@@ -88,7 +88,9 @@ def read_ticks(path: Path) -> tuple[dict[str, np.ndarray], str | None]:
 
 def _whole(body: bytes, width: int) -> np.ndarray | None:
     """(rows, width) of a body whose every row is whole and numeric, else None."""
-    if body and not body.endswith(b"\n"):
+    if not body:
+        return np.empty((0, width))
+    if not body.endswith(b"\n"):
         return None
     try:
         values = np.loadtxt(io.BytesIO(body), delimiter=",", comments=None, ndmin=2, dtype=float)
