@@ -381,8 +381,8 @@ def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_say
     """A run against a bridge process writing its own .BIN (`--log-dir`): the run's log folder with the .BIN in place
     of mavlink.tlog is reviewed with the run's ticks and the vehicle's records placed by the announced start;
     `analyze FILE.BIN` finds the mission's start in the run's STATUSTEXT, logged as "GCS:..." in a MSG record, and
-    measures the dive from the vehicle's 10 Hz XKF1 as the run measured it from its 50 Hz telemetry; a copy cut at
-    60 % is read as far as it goes."""
+    measures the dive from the vehicle's 10 Hz XKF1 as the run measured it from its 50 Hz telemetry; a copy cut inside
+    a record past 60 % is read as far as it goes."""
     mission = short_mission(tmp_path, goto_x=2.0, hold=3.0)
     bridge = BridgeProcess(tmp_path, "--log-dir", str(tmp_path / "logs"), "--start-depth", "1", speedup=5.0)
     metrics, run_log = tmp_path / "metrics.json", tmp_path / "runlog"
@@ -409,7 +409,8 @@ def test_the_vehicles_dataflash_log_of_a_run_gives_its_metrics_and_a_cut_one_say
     assert "announced by the rov-mav run" in r.stdout + r.stderr
     cut = tmp_path / "cut.BIN"
     data = log.read_bytes()
-    cut.write_bytes(data[:int(0.6 * len(data))])
+    inside = data.index(b"\xa3\x95", int(0.6 * len(data))) + 3     # 3 bytes into a record (its header and type)
+    cut.write_bytes(data[:inside])                                  # (a cut on a record's boundary leaves none)
     r = analyze(str(cut), "--mission", str(mission), "--out", str(tmp_path / "cut-review"), "--rerun", "off")
     assert r.returncode == 0, r.stdout + r.stderr
     # a DataFlash log cut mid-record is what a power-off leaves: said so, not called damage; read up to the cut

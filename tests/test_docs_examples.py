@@ -10,69 +10,31 @@ from __future__ import annotations
 
 import fcntl
 import json
-import re
 import subprocess
 from pathlib import Path
 
 import pytest
-from bridge_helpers import ROV_MAV
-from conftest import ROOT
+from bridge_helpers import ROV_MAV, BridgeProcess
+from docs_helpers import GAP, HOWTO, check, example_after, shows, words
 
 pytestmark = pytest.mark.process      # every check runs the command its page gives, as a process
-HOWTO = ROOT / "docs" / "howto"
 MARK = "<!-- checked against `rov-mav analyze` by tests/test_docs_examples.py"
 WAIT = 300.0                          # wall s: the square at --speedup 5 is 46 s on an idle machine
-GAP = "..."
-# Each checked block of the how-to pages: (page, the start of its mark). A mark no test holds fails
-# test_every_checked_block_is_held_by_a_test.
+# Each checked block of the how-to pages: (page, the start of its mark) -> the test file that holds it (which must
+# name the mark). A mark no test holds fails test_every_checked_block_is_held_by_a_test.
 CHECKED = {
-    ("review-dive.md", MARK),
-    ("fly.md", "<!-- checked against `rov-mav run square`"),
-    ("simulate.md", "<!-- checked against `rov-mav simulate square`"),
-    ("qgc-plan.md", "<!-- checked against `rov-mav simulate under_ice_survey.plan`"),
-    ("tune.md", "<!-- checked against `rov-mav tune line`"),
-    ("cluster.md", "<!-- checked against `rov-mav tune line --cluster`"),
-    ("bench.md", "<!-- checked against `rov-mav bench`"),
-    ("identify.md", "<!-- checked against `rov-mav identify`"),
-    ("identify.md", "<!-- checked against the outcome of `rov-mav identify`"),
+    ("review-dive.md", MARK): "test_docs_examples.py",
+    ("fly.md", "<!-- checked against `rov-mav run square`"): "test_docs_examples.py",
+    ("simulate.md", "<!-- checked against `rov-mav simulate square`"): "test_docs_examples.py",
+    ("qgc-plan.md", "<!-- checked against `rov-mav simulate under_ice_survey.plan`"): "test_docs_examples.py",
+    ("tune.md", "<!-- checked against `rov-mav tune line`"): "test_docs_examples.py",
+    ("cluster.md", "<!-- checked against `rov-mav tune line --cluster`"): "test_docs_examples.py",
+    ("bench.md", "<!-- checked against `rov-mav bench`"): "test_docs_examples.py",
+    ("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`"): "test_docs_examples.py",
+    # identify's report, on the excitation the autotune test flies through a bridge process (its flight, reused)
+    ("identify.md", "<!-- checked against `rov-mav identify`"): "test_autotune.py",
+    ("identify.md", "<!-- checked against the outcome of `rov-mav identify`"): "test_autotune.py",
 }
-
-
-def example_after(page: str, mark: str) -> list[str]:
-    """The lines of the fenced block right after the line holding `mark`, unindented."""
-    lines = page.splitlines()
-    start = next(i for i, line in enumerate(lines) if mark in line)
-    fence = next(i for i in range(start + 1, len(lines)) if lines[i].strip().startswith("```"))
-    end = next(i for i in range(fence + 1, len(lines)) if lines[i].strip().startswith("```"))
-    indent = len(lines[fence]) - len(lines[fence].lstrip())
-    return [line[indent:] for line in lines[fence + 1:end]]
-
-
-def words(line: str) -> str:
-    """A line with its figures (integers, decimals, signed) replaced by N and the spaces between its words (a
-    table's alignment) collapsed; its indentation kept."""
-    figures = re.sub(r"[-+]?\d+(\.\d+)?", "N", line.rstrip())
-    return figures[:len(figures) - len(figures.lstrip())] + " ".join(figures.split())
-
-
-def shows(shown: list[str], printed: list[str]) -> bool:
-    """Whether the printed lines are the shown ones, word for word, `...` lines and ` ...` line ends aside."""
-    pattern = []
-    for line in shown:
-        if line.strip() == GAP:
-            pattern.append(r"(?:[^\n]*\n)*?")
-        elif line.rstrip().endswith(" " + GAP):
-            pattern.append(re.escape(words(line.rstrip()[:-len(GAP)])) + r"[^\n]*\n")
-        else:
-            pattern.append(re.escape(words(line)) + r"\n")
-    return re.fullmatch("".join(pattern), "".join(words(line) + "\n" for line in printed)) is not None
-
-
-def check(page: str, mark: str, printed: str) -> None:
-    """The page's block after `mark` against what a command printed."""
-    shown = example_after((HOWTO / page).read_text(), mark)
-    assert shows(shown, printed.rstrip().splitlines()), f"{page} shows:\n" + "\n".join(shown) + \
-        "\n\nthe command printed:\n" + printed
 
 
 def rov_mav(args: list[str], cwd: Path, status: int | None = 0) -> subprocess.CompletedProcess:
@@ -104,6 +66,8 @@ def test_every_checked_block_is_held_by_a_test():
     held = {(page, line) for page, line in marked for name, mark in CHECKED if page == name and mark in line}
     assert marked == held, sorted(marked - held)
     assert all(any(name == page and mark in line for page, line in marked) for name, mark in CHECKED)
+    tests = Path(__file__).parent
+    assert all(mark in (tests / holder).read_text() for (_, mark), holder in CHECKED.items())
 
 
 @pytest.fixture(scope="module")
@@ -164,18 +128,7 @@ def test_the_bench_pages_summary_is_what_a_small_bench_prints(tmp_path):
     check("bench.md", "<!-- checked against `rov-mav bench`", done.stdout)
 
 
-def test_the_identify_pages_report_is_what_identify_prints_for_the_excitation_flown_on_the_built_in_vehicle(
-        tmp_path):
-    rov_mav(["run", "identify", "--gains", "report", "--speedup", "5", "--log", "out/identify", "--rerun", "off"],
-            tmp_path)
-    fit = rov_mav(["identify", "out/identify", "--out", "my_rov.yaml"], tmp_path, status=None)
-    check("identify.md", "<!-- checked against `rov-mav identify`", fit.stdout)
-    # The model the built-in vehicle flies is the prior itself: the fit may or may not beat it, and the page shows
-    # both endings (written, exit 0; refused, exit 1, one line on stderr).
-    assert fit.returncode in (0, 1), fit.stdout + fit.stderr
-    assert (tmp_path / "my_rov.yaml").exists() == (fit.returncode == 0), fit.stdout + fit.stderr
-    outcome = [line for line in fit.stdout.splitlines() if line.startswith("wrote ")] if fit.returncode == 0 \
-        else fit.stderr.splitlines()
-    endings = example_after((HOWTO / "identify.md").read_text(),
-                            "<!-- checked against the outcome of `rov-mav identify`")
-    assert len(outcome) == 1 and any(shows([ending], outcome) for ending in endings), (outcome, endings)
+def test_the_autotune_pages_plan_is_what_a_dry_run_prints_on_the_built_in_vehicle(tmp_path):
+    with BridgeProcess(tmp_path, "--start-depth", "1.3", speedup=5.0) as bridge:
+        done = rov_mav(["autotune", "--target", f"udpout:127.0.0.1:{bridge.port}", "--dry-run"], tmp_path)
+    check("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`", done.stdout)

@@ -11,7 +11,7 @@ The vehicles (each from the shipped BlueROV2 Heavy):
   heavier   added mass and damping 40 % above the model
 Run:
     .venv/bin/python tools/autotune_table.py [--vehicles payload,weak,heavier] [--speedup 5] [--budget 90]
-                                             [--keep DIR]
+                                             [--keep DIR] [--figure PNG]
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import autotune_figure  # noqa: E402
 from link_faults import ROV_MAV, free_port  # noqa: E402
 
 from rov_mav.model.vehicle import Vehicle, load_vehicle, save_vehicle  # noqa: E402
@@ -148,18 +149,23 @@ def main() -> None:
     parser.add_argument("--speedup", type=float, default=5.0)
     parser.add_argument("--budget", type=float, default=90.0, help="autotune --budget, wall s")
     parser.add_argument("--keep", type=Path, help="keep every output in this folder")
+    parser.add_argument("--figure", type=Path, help="also draw the table as the results page shows it (PNG)")
     args = parser.parse_args()
     print(f"bridge --speedup {args.speedup:g}, autotune --budget {args.budget:g}; load average before: "
           f"{os.getloadavg()[0]:.1f}", flush=True)
-    print("| vehicle | square, shipped: RMS / max (cm) | autotuned: RMS / max (cm) | ratio | autotune | procedure "
-          "(vehicle min at 1x) | fit: added mass (kg) |\n|---|---|---|---|---|---|---|", flush=True)
+    table = ["| vehicle | square, shipped: RMS / max (cm) | autotuned: RMS / max (cm) | ratio | autotune | procedure "
+             "(vehicle min at 1x) | fit: added mass (kg) |", "|---|---|---|---|---|---|---|"]
+    print("\n".join(table), flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.keep or Path(tmp)
         for name in args.vehicles.split(","):
             folder = root / name
             folder.mkdir(parents=True, exist_ok=True)
-            print(row(one_vehicle(name, args, folder)), flush=True)
+            table.append(row(one_vehicle(name, args, folder)))
+            print(table[-1], flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+    if args.figure:
+        autotune_figure.draw(autotune_figure.read_rows("\n".join(table)), args.figure)
 
 
 if __name__ == "__main__":

@@ -131,7 +131,8 @@ def _interrupted(signum, frame) -> None:
 
 
 def _step(n: int, text: str) -> None:
-    print(f"\nautotune: step {n} of {len(STEPS)}, {text}", flush=True)
+    gap = "\n" if n > 1 else ""           # a blank line between the steps
+    print(f"{gap}autotune: step {n} of {len(STEPS)}, {text}", flush=True)
 
 
 def _stopped(step: int, code: int) -> int:
