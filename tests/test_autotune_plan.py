@@ -15,7 +15,7 @@ from rov_mav.mission.autotune_plan import (
     SURFACE_CLEARANCE,
     check_leg,
     extent,
-    hold_at_start,
+    hold_here,
     moved_excitation,
     outside,
 )
@@ -44,16 +44,17 @@ def test_the_moved_excitation_is_the_shipped_one_shifted_to_the_start_and_inside
     assert flown.limits.max_depth == pytest.approx(box.high[2] + MAX_EXCURSION, abs=1e-3)
 
 
-def test_the_check_square_and_the_dry_runs_hold_lie_inside_the_box(excitation):
+def test_the_check_square_lies_inside_the_box_and_the_dry_runs_hold_is_where_the_vehicle_is(excitation):
     spec, mission = excitation
     moved, box = moved_excitation(spec, mission, np.array([4.0, -2.0, 1.5]), SIZE)
     square = mission_from_dict(check_leg(box), "check")
     low, high = extent(square)
     assert outside(square, box) == 0.0 and np.allclose(high[:2] - low[:2], 2.0, atol=1e-6)
     assert 50.0 < square.duration < 80.0
-    hold = mission_from_dict(hold_at_start(moved), "hold")
-    np.testing.assert_allclose(hold.start_pose, mission_from_dict(moved, "moved").start_pose)
-    assert outside(hold, box) == 0.0
+    hold = mission_from_dict(hold_here(np.array([4.0, -2.0, 1.5, 0.3]), SIZE, moved["limits"]), "hold")
+    np.testing.assert_allclose(hold.start_pose, [4.0, -2.0, 1.5, 0.0, 0.0, 0.3], atol=1e-3)
+    assert hold.limits.max_depth == pytest.approx(1.5 + SIZE[2] + MAX_EXCURSION)
+    assert hold.limits.max_thrust == moved["limits"]["max_thrust"] and hold.limits.max_tracking_error >= 100.0
 
 
 def test_outside_measures_how_far_a_reference_leaves_the_box(excitation):

@@ -29,8 +29,9 @@ from rov_mav.config import ConfigError
 
 DESCRIPTION = """\
 Tune the controller for the vehicle on the link, in the water, in six steps, each said as it starts:
-  1 plan      where the vehicle is; the box around it (--box, at --depth); what will be flown, for how long, within
-              which limits, and which files will be written; the vehicle checked by a dry run (--dry-run stops here)
+  1 plan      the vehicle checked by a dry run (a hold where it is); then where it is now, the box around it (--box,
+              at --depth), what will be flown, for how long, within which limits, and which files will be written
+              (--dry-run stops here)
   2 excite    the shipped identify mission (206 s; --excitation), moved to start where the vehicle is, flown with
               the current gains
   3 identify  the vehicle fitted from that flight's log, the shipped model (or --vehicle) as prior; a fit that
@@ -102,10 +103,12 @@ def main(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _interrupted)      # as Ctrl-C: the step's flight stops safely, its children too
     out = require_writable(args.out, folder=True, option="--out")
     out.mkdir(parents=True, exist_ok=True)
-    excite, check, hold = _plan(args, out)
-    code = _dry_run(args, hold)
-    if code or args.dry_run:
-        return _stopped(1, code) if code else 0
+    _step(1, "plan")
+    if code := _vehicle_check(args, out):
+        return _stopped(1, code)
+    excite, check = _plan(args, out)            # where the vehicle is now: it may have drifted in the check
+    if args.dry_run:
+        return 0
     _step(2, "excite: the identification excitation, with the current gains")
     if code := _fly(args, excite, out / "excite", args.gains, args.vehicle):
         return _stopped(2, code)
@@ -141,28 +144,52 @@ def _stopped(step: int, code: int) -> int:
     return code
 
 
-def _plan(args: argparse.Namespace, out: Path) -> tuple[Path, Path, Path]:
-    """Step 1: the box around the vehicle, the missions written into --out (the excitation, the check square, the
-    dry run's hold), what will be flown."""
-    from rov_mav.flight.session.link import LinkError
-    from rov_mav.flight.session.vehicle_position import vehicle_pose
-    from rov_mav.mission.autotune_plan import MAX_EXCURSION, check_leg, hold_at_start, moved_excitation
-    from rov_mav.mission.missions import load_mission, mission_from_dict
+def _excitation(args: argparse.Namespace):
+    """The excitation: (its file's contents, the mission); ConfigError when it is not a mission YAML."""
+    from rov_mav.mission.missions import load_mission
 
-    _step(1, "plan")
-    try:
-        pose = vehicle_pose(args.target)
-    except LinkError as exc:
-        raise ConfigError(str(exc)) from None
-    start = np.array([pose[0], pose[1], pose[2] if args.depth is None else args.depth])
     if Path(args.excitation).suffix.lower() not in (".yaml", ".yml"):
         raise ConfigError(f"{args.excitation}: --excitation takes a mission YAML (its legs are moved to the vehicle)")
-    excitation = load_mission(args.excitation)
-    moved, box = moved_excitation(yaml.safe_load(Path(args.excitation).read_text()), excitation, start, args.box)
+    return yaml.safe_load(Path(args.excitation).read_text()), load_mission(args.excitation)
+
+
+def _pose(args: argparse.Namespace) -> np.ndarray:
+    from rov_mav.flight.session.link import LinkError
+    from rov_mav.flight.session.vehicle_position import vehicle_pose
+
+    try:
+        return vehicle_pose(args.target)
+    except LinkError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def _vehicle_check(args: argparse.Namespace, out: Path) -> int:
+    """A dry run of a hold where the vehicle is: the link, the vehicle, its frame and outputs checked, nothing moved."""
+    from rov_mav import cli
+    from rov_mav.mission.autotune_plan import hold_here
+
+    spec, _ = _excitation(args)
+    hold = out / "vehicle-check.yaml"
+    hold.write_text(yaml.safe_dump(hold_here(_pose(args), args.box, spec.get("limits", {})), sort_keys=False,
+                                   default_flow_style=None))
+    print("  the vehicle checked by a dry run (a hold where it is):", flush=True)
+    return cli.main([*_run_args(args, hold, args.gains, args.vehicle), "--dry-run"])
+
+
+def _plan(args: argparse.Namespace, out: Path) -> tuple[Path, Path]:
+    """The box around where the vehicle is now, the missions written into --out (the excitation, the check square),
+    plan.json, what will be flown."""
+    from rov_mav.mission.autotune_plan import MAX_EXCURSION, check_leg, moved_excitation
+    from rov_mav.mission.missions import mission_from_dict
+
+    pose = _pose(args)
+    start = np.array([pose[0], pose[1], pose[2] if args.depth is None else args.depth])
+    spec, excitation = _excitation(args)
+    moved, box = moved_excitation(spec, excitation, start, args.box)
     square = check_leg(box)
-    paths = out / "excite.yaml", out / "check.yaml", out / "vehicle-check.yaml"
-    for path, spec in zip(paths, (moved, square, hold_at_start(moved))):
-        path.write_text(yaml.safe_dump(spec, sort_keys=False, default_flow_style=None))
+    paths = out / "excite.yaml", out / "check.yaml"
+    for path, content in zip(paths, (moved, square)):
+        path.write_text(yaml.safe_dump(content, sort_keys=False, default_flow_style=None))
     check_duration = mission_from_dict(square, str(paths[1])).duration
     (out / "plan.json").write_text(json.dumps({
         "vehicle": {"north": pose[0], "east": pose[1], "depth": pose[2], "heading_rad": pose[3]},
@@ -188,13 +215,6 @@ def _run_args(args: argparse.Namespace, mission: Path, gains: str | None, vehicl
     command = ["run", "--target", args.target, str(mission), "--controller", args.controller, "--vehicle", vehicle,
                "--rerun", "off"]
     return command + (["--gains", gains] if gains else [])
-
-
-def _dry_run(args: argparse.Namespace, hold: Path) -> int:
-    from rov_mav import cli
-
-    print("  the vehicle checked by a dry run (a hold at the excitation's start):", flush=True)
-    return cli.main([*_run_args(args, hold, args.gains, args.vehicle), "--dry-run"])
 
 
 def _fly(args: argparse.Namespace, mission: Path, log: Path, gains: str | None, vehicle: str) -> int:

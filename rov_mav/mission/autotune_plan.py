@@ -102,13 +102,17 @@ def check_leg(box: Box) -> dict:
             "ramp_time": 2.0, "path": path, "limits": _limits({}, box)}
 
 
-def hold_at_start(moved: dict) -> dict:
-    """A HOLD_CHECK s hold at the excitation's start, for the dry run that checks the vehicle. Nothing is flown in a
-    dry run, so the vehicle keeps drifting where the water takes it (and the excitation itself would cross the
-    tracking limit): its tracking limit is DRY_RUN_TRACKING, the depth limit the box's."""
-    return {"name": "autotune_vehicle_check", "description": "a hold at the excitation's start",
-            "start": copy.deepcopy(moved["start"]), "ramp_time": 1.0, "path": [{"hold": HOLD_CHECK}],
-            "limits": {**moved["limits"], "max_tracking_error": DRY_RUN_TRACKING}}
+def hold_here(pose: np.ndarray, size: np.ndarray, limits: dict) -> dict:
+    """A HOLD_CHECK s hold where the vehicle is (`pose`: north, east, depth m, heading rad), for the dry run that
+    checks the vehicle before the plan is made. Nothing is flown in a dry run, so the vehicle keeps drifting where
+    the water takes it: its tracking limit is DRY_RUN_TRACKING, its depth limit a box of `size` below it."""
+    north, east, depth, heading = (float(v) for v in pose)
+    return {"name": "autotune_vehicle_check", "description": "a hold where the vehicle is",
+            "start": {"position": [round(north, 3), round(east, 3), round(depth, 3)],
+                      "heading": f"{np.degrees(heading):.1f} deg"},
+            "ramp_time": 1.0, "path": [{"hold": HOLD_CHECK}],
+            "limits": {**limits, "max_depth": round(depth + float(size[2]) + MAX_EXCURSION, 3),
+                       "max_tracking_error": DRY_RUN_TRACKING}}
 
 
 def station_hold(square: dict, duration: float) -> dict:
