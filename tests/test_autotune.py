@@ -175,6 +175,7 @@ def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
 
 
 def test_ctrl_c_while_the_vehicle_holds_station_for_the_tune_stops_both_and_leaves_it_safe(tmp_path):
+    """The station hold starts with the fit (step 3) and runs through the tune (step 4): Ctrl-C in the tune."""
     plant_file, _ = plant(tmp_path)
     bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
                                                speedup=SPEEDUP)
@@ -189,7 +190,9 @@ def test_ctrl_c_while_the_vehicle_holds_station_for_the_tune_stops_both_and_leav
         try:
             for line in started.stdout:
                 seen.append(line)
-                if "armed in MANUAL" in line and any("step 4 of 6" in s for s in seen) or time.monotonic() > deadline:
+                text = "".join(seen)
+                holding = "armed in MANUAL" in text[text.find("step 3 of 6"):] if "step 3 of 6" in text else False
+                if holding and "step 4 of 6" in text or time.monotonic() > deadline:
                     break
             time.sleep(2.0)                                  # the tune is running, the vehicle holding
             started.send_signal(signal.SIGINT)

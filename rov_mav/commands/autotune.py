@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -34,11 +35,12 @@ Tune the controller for the vehicle on the link, in the water, in six steps, eac
               (--dry-run stops here)
   2 excite    the shipped identify mission (206 s; --excitation), moved to start where the vehicle is, flown with
               the current gains
-  3 identify  the vehicle fitted from that flight's log, the shipped model (or --vehicle) as prior; a fit that
-              predicts worse than the prior on held-back data, or that no vehicle can be, stops here
+  3 identify  the vehicle fitted from that flight's log, the shipped model (or --vehicle) as prior, while a run
+              holds the vehicle where the check starts; a fit that predicts worse than the prior on held-back data,
+              or that no vehicle can be, stops here
   4 tune      PSO of the gains on the fitted vehicle, on the check square, robust to the fit's uncertainty (the
               plant scaled by the widest relative 95 % interval of its fitted mass and damping, 5-30 %), within
-              --budget seconds (one thread), while a run holds the vehicle where the check starts
+              --budget seconds (one thread), the vehicle still holding station
   5 check     the check square (about 64 s) flown twice, old gains then new
   6 keep      the new gains kept only when their position error is at least --margin smaller; the vehicle file,
               the gains, the logs and report.md in --out
@@ -57,7 +59,7 @@ kept); otherwise the status of the step that stopped it (a run's, identify's, tu
 
 STEPS = ("plan", "excite", "identify", "tune", "check", "keep")
 NOT_BETTER = 4                   # the procedure completed, the new gains were not better (a run's 3 is a handover)
-HOLD_SLACK = 120.0               # s the station hold lasts beyond the tune's budget (its end is the tune's)
+HOLD_SLACK = 300.0               # s the station hold lasts beyond the tune's budget: the fit's time (its end is the tune's)
 POLL = 0.2                       # wall s between looks at the tune and the hold
 UNCERTAINTY = (0.05, 0.3)        # the plant scale's spread for the tune: at least 5 %, at most 30 %
 
@@ -112,13 +114,14 @@ def main(args: argparse.Namespace) -> int:
     _step(2, "excite: the identification excitation, with the current gains")
     if code := _fly(args, excite, out / "excite", args.gains, args.vehicle):
         return _stopped(2, code)
-    _step(3, "identify: the vehicle from the excitation's log")
-    code, fitted = _identify(args, out)
-    if code:
-        return _stopped(3, code)
-    _step(4, f"tune: {args.controller} on the fitted vehicle, {args.budget:g} s")
-    if code := _tune(args, out, check, _uncertainty(fitted)):
-        return _stopped(4, code)
+    _step(3, "identify: the vehicle from the excitation's log, while it holds station where the check starts")
+    with _holding_station(args, out, check) as holding:
+        code, fitted = _identify(args, out)
+        if code := code or _held(holding):
+            return _stopped(3, code)
+        _step(4, f"tune: {args.controller} on the fitted vehicle, {args.budget:g} s, while it holds station")
+        if code := _tune(args, out, check, _uncertainty(fitted), holding):
+            return _stopped(4, code)
     _step(5, "check: the check square, old gains then new")
     runs = {}
     for label, gains in (("old", args.gains), ("new", str(out / "tuned-gains.yaml"))):
@@ -239,41 +242,59 @@ def _uncertainty(fitted) -> float:
     return float(np.clip(max(spreads, default=UNCERTAINTY[1]), *UNCERTAINTY))
 
 
-def _tune(args: argparse.Namespace, out: Path, check: Path, spread: float) -> int:
-    """Step 4: `rov-mav tune` in a process of its own (one thread) while a `rov-mav run` holds the vehicle where the
-    check starts; the hold ends (its safe stop) when the tune does, or stops the tune when it ends first."""
+@contextmanager
+def _holding_station(args: argparse.Namespace, out: Path, check: Path):
+    """A `rov-mav run` holding the vehicle where the check starts (its own process, the model it was excited with),
+    from the end of the excitation until the tune is done: yields the process; its safe stop (SIGINT) on leaving."""
     from rov_mav.mission.autotune_plan import station_hold
 
+    hold = out / "station.yaml"
+    hold.write_text(yaml.safe_dump(station_hold(yaml.safe_load(check.read_text()), args.budget + HOLD_SLACK),
+                                   sort_keys=False, default_flow_style=None))
+    holding = _child(_run_args(args, hold, args.gains, args.vehicle) + ["--log", str(out / "station")])
+    try:
+        yield holding
+    finally:
+        _end(holding)
+
+
+def _held(holding: subprocess.Popen) -> int:
+    """0 while the station hold runs, else its exit status (1 if it exited 0: it should not have ended)."""
+    if holding.poll() is None:
+        return 0
+    print(f"  the station hold ended (exit {holding.returncode}): the vehicle is no longer held", flush=True)
+    return holding.returncode or 1
+
+
+def _tune(args: argparse.Namespace, out: Path, check: Path, spread: float, holding: subprocess.Popen) -> int:
+    """Step 4: `rov-mav tune` in a process of its own (one thread) while the vehicle holds station; a hold that ends
+    first stops it."""
     scenarios = out / "scenarios.yaml"
     scenarios.write_text(yaml.safe_dump({
         "description": f"the fitted vehicle and plants {spread:.0%} lighter and heavier (its fit's uncertainty)",
         "scenarios": [{"name": "fitted"}, {"name": "lighter", "plant_scale": round(1.0 - spread, 4)},
                       {"name": "heavier", "plant_scale": round(1.0 + spread, 4)}]}, sort_keys=False))
-    hold = out / "station.yaml"
-    hold.write_text(yaml.safe_dump(station_hold(yaml.safe_load(check.read_text()), args.budget + HOLD_SLACK),
-                                   sort_keys=False, default_flow_style=None))
     argv = ["tune", str(check), "--vehicle", str(out / "vehicle.yaml"), "--controller", args.controller,
             "--scenarios", str(scenarios), "--particles", str(args.particles), "--iterations", "100000",
             "--budget", f"{args.budget:g}", "--out", str(out / "tuned-gains.yaml"), "--plot", str(out / "tune"),
             "--rerun", "off", "--threads", "1", *(["--gains", args.gains] if args.gains else []),
             *(["--cluster", args.cluster] if args.cluster else [])]
-    holding = _child(_run_args(args, hold, args.gains, str(out / "vehicle.yaml")) + ["--log", str(out / "station")])
-    tuning = None
+    tuning = _child(argv)
     try:
-        tuning = _child(argv)
-        while tuning.poll() is None and holding.poll() is None:
+        while tuning.poll() is None:
+            if code := _held(holding):
+                return code
             time.sleep(POLL)
-        if tuning.poll() is None:
-            print(f"  the station hold ended first (exit {holding.returncode}): the tune is stopped", flush=True)
-            return holding.returncode or 1
         return tuning.returncode
     finally:
-        for child in (tuning, holding):
-            if child is not None and child.poll() is None:
-                child.send_signal(signal.SIGINT)
-        for child in (tuning, holding):
-            if child is not None:
-                child.wait()
+        _end(tuning)
+
+
+def _end(child: subprocess.Popen) -> None:
+    """A child stopped as Ctrl-C stops it (a run: its safe stop), and waited for."""
+    if child.poll() is None:
+        child.send_signal(signal.SIGINT)
+    child.wait()
 
 
 def _child(argv: list[str]) -> subprocess.Popen:
