@@ -64,16 +64,26 @@ def plant(directory: Path) -> tuple[Path, object]:
     return path, heavier
 
 
-def autotune(port: int, out: Path, excitation: str | None, *args: str) -> subprocess.CompletedProcess:
-    """`rov-mav autotune` on the bridge's port: with `excitation` (a mission's text) in a 2.5 m box, else the
-    shipped identify mission in the default box."""
+def autotune(port: int, folder: Path, out: str, excitation: str | None, *args: str) -> subprocess.CompletedProcess:
+    """`rov-mav autotune --out OUT` in `folder` on the bridge's port: with `excitation` (a mission's text) in a
+    2.5 m box, else the shipped identify mission in the default box."""
     own = []
     if excitation is not None:
-        mission = out.parent / f"{out.name}-excitation.yaml"
-        mission.write_text(excitation)
-        own = ["--excitation", str(mission), "--box", "2.5,2.5,1.5"]
-    return subprocess.run([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{port}", *own, "--out", str(out),
-                           *args], capture_output=True, text=True, timeout=WAIT)
+        (folder / "excitation.yaml").write_text(excitation)
+        own = ["--excitation", "excitation.yaml", "--box", "2.5,2.5,1.5"]
+    return subprocess.run([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{port}", *own, "--out", out, *args],
+                          cwd=folder, capture_output=True, text=True, timeout=WAIT)
+
+
+def autotuned_and_left_safe(tmp_path: Path, excitation: str | None, *args: str, bridge: tuple[str, ...] = (),
+                            out: str = "autotune") -> tuple[subprocess.CompletedProcess, Path]:
+    """A bridge process (at 1.3 m, `bridge` its options), `autotune` against it, and the vehicle then found safe
+    on a second link: (what autotune did, its --out folder)."""
+    process, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", *bridge, speedup=SPEEDUP)
+    with process:
+        done = autotune(process.port, tmp_path, out, excitation, *args)
+        left_safe(checker_port)
+    return done, tmp_path / out
 
 
 def left_safe(port: int) -> None:
@@ -98,12 +108,8 @@ def track(log: Path) -> np.ndarray:
 
 def test_the_whole_procedure_fits_the_vehicle_tunes_checks_and_keeps_inside_its_box(tmp_path):
     plant_file, heavier = plant(tmp_path)
-    bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
-                                               speedup=SPEEDUP)
-    out = tmp_path / "autotune"
-    with bridge:
-        done = autotune(bridge.port, out, None, "--budget", "3", "--particles", "10")
-        left_safe(checker_port)
+    done, out = autotuned_and_left_safe(tmp_path, None, "--budget", "3", "--particles", "10",
+                                        bridge=("--vehicle", str(plant_file)))
     assert done.returncode in (0, 4), done.stdout[-3000:] + done.stderr
     for step in range(1, 7):
         assert f"step {step} of 6" in done.stdout
@@ -141,34 +147,23 @@ def identify_page_example(log: Path, folder: Path) -> None:
     assert len(outcome) == 1 and any(shows([ending], outcome) for ending in endings), (outcome, endings)
 
 
-def test_a_dry_run_plans_and_checks_the_vehicle_and_flies_nothing(tmp_path):
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
-    out = tmp_path / "autotune"
-    with bridge:
-        done = autotune(bridge.port, out, EXCITATION, "--dry-run")
-        left_safe(checker_port)
+def test_a_dry_run_plans_and_checks_the_vehicle_and_flies_nothing_as_the_autotune_page_shows(tmp_path):
+    done, out = autotuned_and_left_safe(tmp_path, None, "--dry-run", out="out/autotune")
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr
     assert sorted(p.name for p in out.iterdir()) == ["check.yaml", "excite.yaml", "plan.json", "vehicle-check.yaml"]
     assert "step 2" not in done.stdout
+    check("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`", done.stdout)
 
 
 def test_a_limit_crossed_in_the_excitation_stops_the_procedure_there(tmp_path):
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
-    out = tmp_path / "autotune"
-    with bridge:
-        done = autotune(bridge.port, out, TOO_FAST)
-        left_safe(checker_port)
+    done, out = autotuned_and_left_safe(tmp_path, TOO_FAST)
     assert done.returncode == 1, done.stdout[-3000:] + done.stderr
     assert "stopped at step 2 of 6 (excite)" in done.stderr and "tracking error" in done.stdout
     assert not (out / "vehicle.yaml").exists() and not (out / "check-old").exists()
 
 
 def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
-    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
-    out = tmp_path / "autotune"
-    with bridge:
-        done = autotune(bridge.port, out, TOO_SHORT)
-        left_safe(checker_port)
+    done, out = autotuned_and_left_safe(tmp_path, TOO_SHORT)
     assert done.returncode == 2, done.stdout[-3000:] + done.stderr
     assert "stopped at step 3 of 6 (identify)" in done.stderr
     assert (out / "excite" / "ticks.csv").exists() and not (out / "vehicle.yaml").exists()

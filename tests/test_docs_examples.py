@@ -14,7 +14,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from bridge_helpers import ROV_MAV, BridgeProcess
+from bridge_helpers import ROV_MAV
 from docs_helpers import GAP, HOWTO, check, example_after, shows, words
 
 pytestmark = pytest.mark.process      # every check runs the command its page gives, as a process
@@ -30,7 +30,7 @@ CHECKED = {
     ("tune.md", "<!-- checked against `rov-mav tune line`"): "test_docs_examples.py",
     ("cluster.md", "<!-- checked against `rov-mav tune line --cluster`"): "test_docs_examples.py",
     ("bench.md", "<!-- checked against `rov-mav bench`"): "test_docs_examples.py",
-    ("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`"): "test_docs_examples.py",
+    ("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`"): "test_autotune.py",
     # identify's report, on the excitation the autotune test flies through a bridge process (its flight, reused)
     ("identify.md", "<!-- checked against `rov-mav identify`"): "test_autotune.py",
     ("identify.md", "<!-- checked against the outcome of `rov-mav identify`"): "test_autotune.py",
@@ -126,9 +126,3 @@ def test_the_bench_pages_summary_is_what_a_small_bench_prints(tmp_path):
     done = rov_mav(["bench", "--controllers", "fuzzy", "pid", "--missions", "line", "--seeds", "1", "--tune-budget",
                     "4x2", "--out", "out/bench-try"], tmp_path)
     check("bench.md", "<!-- checked against `rov-mav bench`", done.stdout)
-
-
-def test_the_autotune_pages_plan_is_what_a_dry_run_prints_on_the_built_in_vehicle(tmp_path):
-    with BridgeProcess(tmp_path, "--start-depth", "1.3", speedup=5.0) as bridge:
-        done = rov_mav(["autotune", "--target", f"udpout:127.0.0.1:{bridge.port}", "--dry-run"], tmp_path)
-    check("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`", done.stdout)

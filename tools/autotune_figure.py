@@ -17,19 +17,21 @@ GOAL = 0.6
 
 
 def read_rows(text: str) -> list[dict]:
-    return [{"vehicle": row["label"], "before": number(row[BEFORE]), "after": number(row[AFTER])}
-            for row in markdown_rows(text) if BEFORE in row]
+    return [{"vehicle": row["label"], "before": number(row[BEFORE]), "after": number(row[AFTER]),
+             "ratio": number(row["ratio"]), "outcome": row["autotune"]} for row in markdown_rows(text) if BEFORE in row]
 
 
 def draw(rows: list[dict], out: Path) -> None:
     x = np.arange(len(rows))
     fig, ax = plt.subplots(figsize=(7, 3.8))
     ax.bar(x - 0.2, [r["before"] for r in rows], 0.4, color="#7f7f7f", label="shipped model and gains")
-    bars = ax.bar(x + 0.2, [r["after"] for r in rows], 0.4, color="#1f77b4", label="after rov-mav autotune")
-    ax.bar_label(bars, labels=[f"{r['after'] / r['before']:.2f}x" if np.isfinite(r["after"]) else "-"
-                               for r in rows], fontsize=8, padding=2)
-    ax.plot(np.concatenate([[xi - 0.4, xi + 0.4] for xi in x]),
-            np.repeat([GOAL * r["before"] for r in rows], 2), "k--", linewidth=0.8, label=f"the {GOAL}x goal")
+    ax.bar(x + 0.2, [r["after"] for r in rows], 0.4, color="#1f77b4", label="after rov-mav autotune")
+    for xi, r in zip(x, rows):
+        shown = f"{r['ratio']:.2f}x" if np.isfinite(r["after"]) else r["outcome"].replace(" (", "\n(")
+        ax.annotate(shown, (xi + 0.2, r["after"] if np.isfinite(r["after"]) else 0.0), textcoords="offset points",
+                    xytext=(0, 3), ha="center", fontsize=8)
+    ax.hlines([GOAL * r["before"] for r in rows], x - 0.4, x + 0.4, colors="k", linestyles="--", linewidth=0.8,
+              label=f"the {GOAL}x goal")
     ax.set_xticks(x, [r["vehicle"] for r in rows])
     ax.set_ylabel("the square: RMS position error (cm)")
     ax.legend(fontsize=8)

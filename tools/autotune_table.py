@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -36,6 +37,7 @@ from rov_mav.model.vehicle import Vehicle, load_vehicle, save_vehicle  # noqa: E
 
 PAYLOAD, PAYLOAD_AT = 3.0, np.array([-0.15, 0.0, 0.10])     # kg, m from the centre (x forward, z down)
 FOAM_AT = np.array([-0.15, 0.0, -0.10])                     # m: the foam that floats it, high and aft
+SQUARE_MAX_DEPTH = 10.0   # m: the square's own 3 m (a pool) would refuse a vehicle that sank there between flights
 RUN_WAIT = 1800.0                                           # wall s for a command
 
 
@@ -76,7 +78,8 @@ def command(args: list[str], log: Path) -> int:
 def square(target: str, folder: Path, *options: str) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     code = command(["run", "--target", target, "square", "--rerun", "off", "--metrics", str(folder / "metrics.json"),
-                    "--log", str(folder / "log"), *options], folder / "output.txt")
+                    "--log", str(folder / "log"), "--max-depth", f"{SQUARE_MAX_DEPTH:g}", *options],
+                   folder / "output.txt")
     metrics = json.loads((folder / "metrics.json").read_text()) if (folder / "metrics.json").exists() else {}
     return {"code": code, "rms": metrics.get("rms_position_error_m", np.nan) * 100,
             "max": metrics.get("max_position_error_m", np.nan) * 100}
@@ -105,8 +108,9 @@ def one_vehicle(name: str, args: argparse.Namespace, folder: Path) -> dict:
     finally:
         bridge.terminate()
         bridge.wait(30)
+    stopped = re.search(r"stopped at step \d of 6 \((\w+)\)", (folder / "autotune.txt").read_text())
     return {"vehicle": name, "before": before, "after": after, "code": code, "wall": wall,
-            "procedure": procedure_time(out), "fit": fit(out, truth)}
+            "stopped": stopped.group(1) if stopped else "?", "procedure": procedure_time(out), "fit": fit(out, truth)}
 
 
 def procedure_time(out: Path) -> float:
@@ -138,7 +142,7 @@ def row(r: dict) -> str:
     before, after = r["before"], r["after"]
     tuned = f"{after['rms']:.2f} / {after['max']:.1f}" if after else "-"
     ratio = f"{after['rms'] / before['rms']:.2f}" if after else "-"
-    outcome = OUTCOME.get(r["code"], f"stopped (exit {r['code']})")
+    outcome = OUTCOME.get(r["code"], f"stopped at {r['stopped']} (exit {r['code']})")
     return (f"| {r['vehicle']} | {before['rms']:.2f} / {before['max']:.1f} | {tuned} | {ratio} | {outcome} | "
             f"{r['procedure'] / 60:.1f} | {r['fit']} |")
 
