@@ -1,5 +1,5 @@
 """`rov-mav autotune` end to end against a `rov-mav sim-bridge` process whose vehicle is not the shipped model (added
-mass and damping 40 % above it): the whole procedure as a user runs it (the shipped excitation, the default box) (plan, excite, identify, tune while holding station, check, keep)
+mass and damping 40 % above it): the whole procedure as a user runs it (the shipped excitation, a box it just fits) (plan, excite, identify, tune while holding station, check, keep)
 with what each step writes, the fit nearer the plant than the prior, the vehicle inside its box and left safe; a dry run that flies
 nothing; an abort in the excitation (a limit crossed), Ctrl-C while the vehicle holds station for the tune, and a fit that cannot be made, each stopping the
 procedure at its step with the vehicle safe and nothing of the later steps written."""
@@ -108,7 +108,7 @@ def track(log: Path) -> np.ndarray:
 
 def test_the_whole_procedure_fits_the_vehicle_tunes_checks_and_keeps_inside_its_box(tmp_path):
     plant_file, heavier = plant(tmp_path)
-    done, out = autotuned_and_left_safe(tmp_path, None, "--budget", "3", "--particles", "10",
+    done, out = autotuned_and_left_safe(tmp_path, None, "--budget", "3", "--particles", "10", "--box", "2.5,2.5,1.5",
                                         bridge=("--vehicle", str(plant_file)))
     assert done.returncode in (0, 4), done.stdout[-3000:] + done.stderr
     for step in range(1, 7):

@@ -3,13 +3,10 @@ line by line, to the output of the commands its page gives (its words; the figur
 so a page cannot show a summary the program no longer prints.
 
 A block may be an excerpt: a line `...` stands for any run of printed lines (none included), and a line ending in
-` ...` for a printed line that begins with its words. The square flown for the review page is flown once per session
-and shared with the fly page (on two workers the second waits for the first's flight)."""
+` ...` for a printed line that begins with its words. The square is flown once for the fly and the review pages."""
 
 from __future__ import annotations
 
-import fcntl
-import json
 import subprocess
 from pathlib import Path
 
@@ -70,35 +67,13 @@ def test_every_checked_block_is_held_by_a_test():
     assert all(mark in (tests / holder).read_text() for (_, mark), holder in CHECKED.items())
 
 
-@pytest.fixture(scope="module")
-def square(tmp_path_factory, worker_id) -> tuple[Path, str]:
-    """The square flown on the built-in vehicle at 5x as the review and fly pages give it, once per session: (the
-    folder it was flown in, what `rov-mav run` printed)."""
-    if worker_id == "master":
-        folder = tmp_path_factory.mktemp("square")
-    else:                             # the session's folder, shared by its workers
-        folder = tmp_path_factory.getbasetemp().parent / "docs-square"
-        folder.mkdir(exist_ok=True)
-    done = folder / "run.json"
-    with open(folder / "lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not done.exists():
-            run = subprocess.run([ROV_MAV, "run", "square", "--speedup", "5", "--log", "out/square/log", "--rerun",
-                                  "off"], cwd=folder, capture_output=True, text=True, timeout=WAIT)
-            done.write_text(json.dumps({"status": run.returncode, "stdout": run.stdout, "stderr": run.stderr}))
-    run = json.loads(done.read_text())
-    assert run["status"] == 0, run["stdout"] + run["stderr"]
-    return folder, run["stdout"]
-
-
-def test_the_review_pages_summary_is_what_analyze_prints_for_the_square(square):
-    folder, _ = square
-    review = rov_mav(["analyze", "out/square/log", "--rerun", "off"], folder)
+def test_the_fly_and_review_pages_show_what_run_and_analyze_print_for_the_square(tmp_path):
+    """One flight of the square on the built-in vehicle at 5x, as both pages give it: the fly page's run, then the
+    review page's summary of its log."""
+    run = rov_mav(["run", "square", "--speedup", "5", "--log", "out/square/log", "--rerun", "off"], tmp_path)
+    check("fly.md", "<!-- checked against `rov-mav run square`", run.stdout)
+    review = rov_mav(["analyze", "out/square/log", "--rerun", "off"], tmp_path)
     check("review-dive.md", MARK, review.stdout)
-
-
-def test_the_fly_pages_run_is_what_run_prints_for_the_square(square):
-    check("fly.md", "<!-- checked against `rov-mav run square`", square[1])
 
 
 def test_the_simulate_pages_summary_is_what_simulate_prints_for_the_square(tmp_path):
