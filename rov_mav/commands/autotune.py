@@ -106,9 +106,10 @@ def main(args: argparse.Namespace) -> int:
     out = require_writable(args.out, folder=True, option="--out")
     out.mkdir(parents=True, exist_ok=True)
     _step(1, "plan")
-    if code := _vehicle_check(args, out):
+    excitation = _excitation(args)
+    if code := _vehicle_check(args, out, excitation[0]):
         return _stopped(1, code)
-    excite, check = _plan(args, out)            # where the vehicle is now: it may have drifted in the check
+    excite, check = _plan(args, out, *excitation)   # where the vehicle is now: it may have drifted in the check
     if args.dry_run:
         return 0
     _step(2, "excite: the identification excitation, with the current gains")
@@ -166,12 +167,11 @@ def _pose(args: argparse.Namespace) -> np.ndarray:
         raise ConfigError(str(exc)) from None
 
 
-def _vehicle_check(args: argparse.Namespace, out: Path) -> int:
+def _vehicle_check(args: argparse.Namespace, out: Path, spec: dict) -> int:
     """A dry run of a hold where the vehicle is: the link, the vehicle, its frame and outputs checked, nothing moved."""
     from rov_mav import cli
     from rov_mav.mission.autotune_plan import hold_here
 
-    spec, _ = _excitation(args)
     hold = out / "vehicle-check.yaml"
     hold.write_text(yaml.safe_dump(hold_here(_pose(args), args.box, spec.get("limits", {})), sort_keys=False,
                                    default_flow_style=None))
@@ -179,7 +179,7 @@ def _vehicle_check(args: argparse.Namespace, out: Path) -> int:
     return cli.main([*_run_args(args, hold, args.gains, args.vehicle), "--dry-run"])
 
 
-def _plan(args: argparse.Namespace, out: Path) -> tuple[Path, Path]:
+def _plan(args: argparse.Namespace, out: Path, spec: dict, excitation) -> tuple[Path, Path]:
     """The box around where the vehicle is now, the missions written into --out (the excitation, the check square),
     plan.json, what will be flown."""
     from rov_mav.mission.autotune_plan import MAX_EXCURSION, check_leg, moved_excitation
@@ -187,7 +187,6 @@ def _plan(args: argparse.Namespace, out: Path) -> tuple[Path, Path]:
 
     pose = _pose(args)
     start = np.array([pose[0], pose[1], pose[2] if args.depth is None else args.depth])
-    spec, excitation = _excitation(args)
     moved, box = moved_excitation(spec, excitation, start, args.box)
     square = check_leg(box)
     paths = out / "excite.yaml", out / "check.yaml"
