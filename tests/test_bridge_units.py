@@ -348,8 +348,10 @@ def test_pacer_measures_lateness_and_reanchors_when_overloaded():
     assert pacer.wait(0.01) == pytest.approx(0.001)
     now[0] += 0.0015
     assert pacer.due(0.01) and pacer.lateness.last == pytest.approx(0.0005)
-    now[0] += 5.0                                               # a stall
-    assert pacer.due(0.02) and pacer.slips == 1 and pacer.wait(0.03) == pytest.approx(0.001)
+    now[0] += 0.05                                              # a hiccup: caught up step by step
+    assert all(pacer.due(0.01 * k) for k in range(2, 7)) and pacer.slips == 0
+    now[0] += 0.15                                              # a stall past SITL's 100 ms: the world pauses
+    assert pacer.due(0.07) and pacer.slips == 1 and pacer.wait(0.08) == pytest.approx(0.001)
 
 
 def test_lateness_histogram_percentiles_match_numpy_within_a_bin():

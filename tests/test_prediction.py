@@ -13,7 +13,7 @@ from conftest import MISSIONS
 
 from rov_mav.control.controller import load_settings
 from rov_mav.flight.run.control_loop import command_period
-from rov_mav.flight.state.prediction import StatePredictor
+from rov_mav.flight.state.prediction import CommandHistory, StatePredictor
 from rov_mav.mission.metrics import trace_metrics
 from rov_mav.mission.missions import load_mission
 from rov_mav.model import kernel
@@ -157,3 +157,19 @@ def test_on_a_slow_link_the_prediction_keeps_each_commands_instant(vehicle):
         eta, nu = predictor.predicted(0.0, x0[:6], x0[6:], 0.36)
         misses.append(abs(eta[5] - truth[5]))
     assert misses[0] < 5e-3 and misses[1] > 5 * misses[0], misses
+
+
+def test_commands_stamped_ahead_of_a_clock_set_back_give_way_to_the_newest():
+    """Our clock of the vehicle runs on alone while telemetry is stale (the neutral then sent is stamped that far
+    ahead) and is set back by the next sample: a command stamped earlier than ones already held supersedes them, so
+    the history stays in time order and what it says acts from then on is the newest command. Kept in arrival order
+    (times going back), the slot means under it were neither command (the runner rang in roll after such a stall)."""
+    history = CommandHistory(1)
+    history.add(0.0, np.array([1.0]))
+    history.add(0.6, np.array([0.0]))          # the stale episode's neutral, stamped on the clock run ahead
+    history.add(0.3, np.array([2.0]))          # the next command, on the clock set back by the next sample
+    history.add(0.32, np.array([3.0]))
+    means = history.slot_means(0.4, 0.4, 0.02)[:, 0]
+    edges = 0.4 - np.arange(len(means), 0, -1) * 0.02 + 0.01     # each slot's middle
+    expected = np.select([edges < 0.0, edges < 0.3, edges < 0.32], [0.0, 1.0, 2.0], 3.0)
+    assert np.allclose(means, expected)

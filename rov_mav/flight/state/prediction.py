@@ -30,6 +30,10 @@ class CommandHistory:
         self._count = 0
 
     def add(self, t_act: float, values: np.ndarray) -> None:
+        """`values` act from t_act on. Commands stamped at or after t_act are dropped: our clock of the vehicle ran
+        ahead of it (the vehicle or its link stalled, then the clock was set back by its next sample), so they were
+        stamped later than they acted, and the newest command is what acts from t_act (the times stay ascending)."""
+        self._count = int(np.searchsorted(self._times[:self._count], t_act, side="left"))
         if self._count == CAPACITY:
             half = CAPACITY // 2
             self._times[:half] = self._times[half:]
@@ -75,11 +79,6 @@ class StatePredictor:
     def commanded(self, t_act: float, wrench: np.ndarray) -> None:
         """A wrench that acts on the vehicle from vehicle time t_act (until the next one)."""
         self.wrenches.add(t_act, wrench)
-
-    def reset(self) -> None:
-        """Forget the disturbance learnt and the last state (after a gap the model cannot bridge)."""
-        self.d_hat[:] = 0.0
-        self._previous = None
 
     def observe(self, t: float, eta: np.ndarray, nu: np.ndarray) -> None:
         """A new measured state at vehicle time t: learn what the model missed since the previous one."""
