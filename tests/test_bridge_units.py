@@ -348,9 +348,9 @@ def test_pacer_measures_lateness_and_reanchors_when_overloaded():
     assert pacer.wait(0.01) == pytest.approx(0.001)
     now[0] += 0.0015
     assert pacer.due(0.01) and pacer.lateness.last == pytest.approx(0.0005)
-    now[0] += 0.05                                              # a hiccup: caught up step by step
+    now[0] += 0.005                                             # a hiccup (0.05 s simulated): caught up
     assert all(pacer.due(0.01 * k) for k in range(2, 7)) and pacer.slips == 0
-    now[0] += 0.15                                              # a stall past SITL's 100 ms: the world pauses
+    now[0] += 0.015                                             # a stall past 0.1 s simulated: the world pauses
     assert pacer.due(0.07) and pacer.slips == 1 and pacer.wait(0.08) == pytest.approx(0.001)
 
 

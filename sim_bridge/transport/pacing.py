@@ -2,12 +2,13 @@
 
 Step k of h seconds is due at wall time anchor + (k h - anchor_sim) / speedup. Its lateness (actual start minus due
 time, wall seconds) is recorded in a fixed-size histogram (memory stays flat however long the bridge runs); that is the
-loop jitter. If the loop falls more than `max_lag` wall seconds behind (an overloaded machine, a stopped process),
-it re-anchors instead of bursting to catch up, and counts a slip: simulated time then runs slower than asked, but
-every step stays h long. Like ArduPilot's SITL, which lets at most 100 ms of wall time build up as sleep debt
-(`Aircraft::sync_frame_time`, libraries/SITL/SIM_Aircraft.cpp): a longer stall pauses the world with its autopilot.
-Bursting through it instead would run seconds of the vehicle's water in a few wall milliseconds, faster than any
-station on the link can answer, which no real dive does (a run at --rate 5 tipped past max_tilt after such a burst).
+loop jitter. If the loop falls more than `catch_up` simulated seconds behind (an overloaded machine, a stopped
+process), it re-anchors instead of bursting to catch up, and counts a slip: simulated time then runs slower than
+asked, but every step stays h long. ArduPilot's SITL lets at most 100 ms of wall time build up as sleep debt
+(`Aircraft::sync_frame_time`, libraries/SITL/SIM_Aircraft.cpp), which at 1x is 0.1 s of the vehicle's; the pacer
+keeps that 0.1 s of the vehicle's at every speedup: a longer stall pauses the world with its autopilot. Bursting
+through it instead runs seconds of the vehicle's water in a few wall milliseconds, faster than any station on the
+link can answer, which no real dive does (a run at --rate 5 tipped past max_tilt after such a burst).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 BINS_PER_DECADE = 100                 # percentiles to within 2.3 % of their value
 SMALLEST, LARGEST = 1e-7, 100.0       # s: lateness below counts in the first bin, above in the last
-MAX_LAG = 0.1                         # wall s behind the schedule caught up in a burst; more is a slip
+CATCH_UP = 0.1                        # simulated s behind the schedule caught up in a burst; more is a slip
 
 
 class LatenessHistogram:
@@ -56,9 +57,9 @@ class LatenessHistogram:
 class Pacer:
     """Wall-clock schedule of a simulation stepping `h` s of simulated time per step, `speedup` x real time."""
 
-    def __init__(self, h: float, speedup: float, max_lag: float = MAX_LAG, clock=time.perf_counter):
+    def __init__(self, h: float, speedup: float, catch_up: float = CATCH_UP, clock=time.perf_counter):
         self.h = h
-        self.max_lag = max_lag
+        self.catch_up = catch_up
         self.clock = clock
         self.lateness = LatenessHistogram()
         self.slips = 0
@@ -82,7 +83,7 @@ class Pacer:
         late = self.clock() - (self._wall0 + (t - self._sim0) / self.speedup)
         if late < 0:
             return False
-        if late > self.max_lag:
+        if late * self.speedup > self.catch_up:
             self.slips += 1
             self._anchor(t)
             late = 0.0
