@@ -241,7 +241,7 @@ def test_identify_on_a_pilots_dive_fits_what_it_moved_and_never_writes_a_vehicle
     """The 2.5 m pilot's dive of a standard BlueROV2 (no DVL, no mission) with the shipped bluerov2 as the prior: surge
     and sway are not fitted (the EKF has no horizontal velocity of its own), heave and yaw are (the dive went to
     2.46 m and turned); the six motors are read from SERVO1-6 with MOT_k_DIRECTION. Whatever the fit, the check's
-    own figures decide: a vehicle is written only if it predicts depth and heading 1 s ahead on the held-back third
+    own figures decide: a vehicle is written only if it predicts depth and heading 1 s ahead on the held-back blocks
     no worse than the prior and is possible; else nothing is written and one line says why."""
     from rov_mav.commands.identify import _checked, _dofs, load_dataflash_run
     from rov_mav.model.vehicle import load_vehicle
@@ -265,7 +265,7 @@ def test_identify_on_a_pilots_dive_fits_what_it_moved_and_never_writes_a_vehicle
     assert "surge  kept: no horizontal velocity in the log" in printed.out
     if worse:
         assert code == 1 and not out.exists() and printed.err.count("\n") == 1
-        assert "predicts worse than the prior on the held-back third" in printed.err
+        assert "predicts worse than the prior on the held-back blocks" in printed.err
     else:
         assert code == 0 and load_vehicle(out).frame.config == 1
 

@@ -28,12 +28,12 @@ One number cannot come from motion: scaling every force of the model and the thr
 vehicle does. The thrusters' bench data set that level unless --net-buoyancy gives the vehicle's weight in water
 (weigh it hanging from a spring scale, fully submerged): then the thrust scale is fitted too.
 
-Before anything is written, the model is checked: fitted again on the first two thirds of each log, it predicts
-the last third one second ahead (depth, heading, roll, pitch: integrated from each logged state with the thrust the
-vehicle was sent) beside the prior. A fit that predicts depth or heading worse than the prior, or a vehicle no ROV
-can be (a mass matrix not positive definite, negative damping, buoyancy more than 25 % from the weight), is not
-written: one line says why. A DataFlash log's frame (FRAME_CONFIG, or ArduSub's "Frame:" text) must be the prior's
-(the shipped bluerov2 is the standard six-thruster BlueROV2's, bluerov2_heavy the Heavy's).
+Before anything is written, the model is checked: fitted again on two of every three 10 s blocks of each log, it
+predicts the third block one second ahead (depth, heading, roll, pitch: integrated from each logged state with the
+thrust the vehicle was sent) beside the prior. A fit that predicts depth or heading worse than the prior, or a
+vehicle no ROV can be (a mass matrix not positive definite, negative damping, buoyancy more than 25 % from the
+weight), is not written: one line says why. A DataFlash log's frame (FRAME_CONFIG, or ArduSub's "Frame:" text)
+must be the prior's (the shipped bluerov2 is the standard six-thruster BlueROV2's, bluerov2_heavy the Heavy's).
 
 A pilot's dive (a .BIN without --mission) has no reference: its armed states are the data, the dive's own motion
 smoothed over 1 s stands in for the reference, and only the DOFs it moved are fitted (each said, with how much it
@@ -204,8 +204,8 @@ def _report(result, logs: list[str], out: str | None, window: float) -> str:
 
 
 def _checked(runs, prior, net_buoyancy, window, dofs):
-    """The held-back check (`prediction_check`): a fit on the first two thirds of each run, its predictions on the
-    last third beside the prior's; IdentificationError (one line) when the first part alone cannot be fitted."""
+    """The held-back check (`prediction_check`): a fit on two of every three blocks of each run, its predictions on
+    the third beside the prior's; IdentificationError (one line) when the fitted blocks alone cannot be fitted."""
     from rov_mav.offline.identify.identification import MIN_DURATION, IdentificationError, identify
     from rov_mav.offline.identify.prediction_check import HELD_BACK, compare, split
 
@@ -214,7 +214,7 @@ def _checked(runs, prior, net_buoyancy, window, dofs):
         first = identify([fit for fit, _ in parts], prior, net_buoyancy, window, dofs=dofs)
     except IdentificationError as exc:
         need = MIN_DURATION / (1.0 - HELD_BACK)
-        raise IdentificationError(f"the check on held-back data cannot fit the first two thirds of the logs ({exc}): "
+        raise IdentificationError(f"the check on held-back data cannot fit two thirds of the logs ({exc}): "
                                   f"give at least {need:.0f} s of flight") from None
     return compare(first.vehicle, prior, [held for _, held in parts], first.delay)
 
@@ -227,14 +227,17 @@ def _refusal(result, comparisons) -> str | None:
         return f"the fitted vehicle is impossible: {why}; nothing written"
     worse = [c for c in comparisons if c.quantity in DECIDING and c.worse]
     if worse:
-        return ("the fit predicts worse than the prior on the held-back third of the logs (1 s ahead: "
+        return ("the fit predicts worse than the prior on the held-back blocks of the logs (1 s ahead: "
                 + ", ".join(f"{c.quantity} RMS {c.fitted:.3g} against {c.prior:.3g}" for c in worse)
                 + "): it would fly worse than the vehicle file you have; nothing written")
     return None
 
 
 def _check_lines(comparisons) -> list[str]:
-    lines = ["held-back check (fitted on the first two thirds of each log; RMS error 1 s ahead on the last third):"]
+    from rov_mav.offline.identify.prediction_check import BLOCK
+
+    lines = [f"held-back check (fitted on two of every three {BLOCK:g} s blocks of each log; RMS error 1 s ahead on "
+             "the third):"]
     lines += [f"  {c.quantity:<12} fitted {c.fitted:8.3g}  prior {c.prior:8.3g}  ({c.predictions} predictions)"
               for c in comparisons]
     return lines
