@@ -27,6 +27,7 @@ from rov_mav.commands.arguments import (
     vehicle_file,
 )
 from rov_mav.config import ConfigError
+from rov_mav.offline.autotune_report import write_report
 
 DESCRIPTION = """\
 Tune the controller for the vehicle on the link, in the water, in six steps, each said as it starts:
@@ -311,7 +312,7 @@ def _keep(args: argparse.Namespace, out: Path, runs: dict, fitted) -> int:
     verdict = (f"the new gains kept in gains.yaml: {key} {new * 100:.2f} cm against {old * 100:.2f} cm" if better else
                f"the new gains were not better by {args.margin:.0%} ({key} {new * 100:.2f} cm against "
                f"{old * 100:.2f} cm): keep flying the old ones (the tuned ones are in tuned-gains.yaml)")
-    report = _write_report(out, runs, key, fitted, verdict)
+    report = write_report(out, runs, key, fitted.fits, verdict, _check_errors(out))
     print(f"  {verdict}\n  report: {report}", flush=True)
     if not better:
         print(f"rov-mav autotune: {verdict}", file=sys.stderr)
@@ -324,84 +325,17 @@ def _error_key(runs: dict) -> str:
     return truth if all(truth in r for r in runs.values()) else "rms_position_error_m"
 
 
-CHECK_ROWS = (("position RMS (cm)", "rms_position_error_m", 100.0), ("position max (cm)", "max_position_error_m", 100.0),
-              ("position RMS against the truth (cm)", "rms_position_error_truth_m", 100.0),
-              ("attitude RMS (deg)", "rms_attitude_error_rad", float(np.degrees(1.0))))
-
-
-def _write_report(out: Path, runs: dict, key: str, fitted, verdict: str) -> Path:
-    """report.md: the fit per DOF, the tune's convergence, old against new on the check square (figures beside)."""
-    _draw_fit(fitted, out / "fit.png")
-    _draw_check(out, out / "check.png")
-    rows = [f"| {label} | {runs['old'][k] * scale:.2f} | {runs['new'][k] * scale:.2f} |"
-            for label, k, scale in CHECK_ROWS if k in runs["old"] and k in runs["new"]]
-    rows.append(f"| thruster activity (us/s) | {runs['old']['loop']['pwm_activity_us_per_s']:.0f} | "
-                f"{runs['new']['loop']['pwm_activity_us_per_s']:.0f} |")
-    fits = "\n".join(f"| {f.dof} | {f.r2:.3f} | {f.rms:.3g} {f.unit} |" for f in fitted.fits if np.isfinite(f.r2))
-    text = f"""# Autotune
-
-{verdict[0].upper() + verdict[1:]} (judged on {key}).
-
-## The check square, old gains against new
-
-![Position error on the check square](check.png)
-
-| | old | new |
-|---|---:|---:|
-{chr(10).join(rows)}
-
-## The fit (vehicle.yaml)
-
-![How much of each degree of freedom's force the fitted model explains](fit.png)
-
-| DOF | R^2 | residual RMS |
-|---|---:|---:|
-{fits}
-
-## The tune (tuned-gains.yaml)
-
-![The swarm's best cost per iteration](tune/convergence.png)
-"""
-    (out / "report.md").write_text(text)
-    return out / "report.md"
-
-
-def _draw_fit(fitted, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    dofs = [f for f in fitted.fits if np.isfinite(f.r2)]
-    fig, ax = plt.subplots(figsize=(6, 3))
-    ax.bar([f.dof for f in dofs], [f.r2 for f in dofs], color="#1f77b4")
-    ax.set_ylim(min(0.0, *(f.r2 for f in dofs)), 1.0)
-    ax.set_ylabel("R^2 of the force balance")
-    ax.set_title("The fit per degree of freedom")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _draw_check(out: Path, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def _check_errors(out: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each check flight's position error over its mission time (against the truth where its log has it)."""
     from rov_mav.flight.record.runlog import DOF, REFERENCE, TRUTH
     from rov_mav.review.logdir import column_block, read_run_folder
 
-    fig, ax = plt.subplots(figsize=(8, 3))
-    for label, colour in (("old", "#7f7f7f"), ("new", "#1f77b4")):
+    errors = {}
+    for label in ("old", "new"):
         ticks = read_run_folder(out / f"check-{label}").ticks
         flown = ticks["t"] >= 0.0
         truth = column_block(ticks, TRUTH)
         position = truth if np.all(np.isfinite(truth[flown])) else column_block(ticks, DOF)[:, :3]
         error = np.linalg.norm(position - column_block(ticks, REFERENCE)[:, :3], axis=1)
-        ax.plot(ticks["t"][flown], 100.0 * error[flown], color=colour, label=f"{label} gains")
-    ax.set_xlabel("mission time (s)")
-    ax.set_ylabel("position error (cm)")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        errors[label] = (ticks["t"][flown], error[flown])
+    return errors

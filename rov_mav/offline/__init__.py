@@ -1,5 +1,6 @@
 """Offline work with no I/O to a vehicle: closed-loop simulation, PSO tuning, scenarios, the bench, figures.
 
+- autotune_report: autotune's one-page report and its figures
 - bench: controllers tuned alike, judged on held-out scenarios over seeds
 - bench_report: the bench's Markdown
 - cluster: the tuner's Dask backend
