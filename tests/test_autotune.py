@@ -2,8 +2,8 @@
 mass and damping 40 % above it): the whole procedure on the surge, heave and yaw parts of the shipped excitation
 (plan, excite, identify, tune while holding station, check, keep) with what each step writes, the fit nearer the
 plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; an abort in the
-excitation (a limit crossed), Ctrl-C while the vehicle holds station for the tune, and a fit that cannot be made,
-each stopping the procedure at its step with the vehicle safe and nothing of the later steps written."""
+excitation (a limit crossed), a fit that cannot be made, Ctrl-C while the vehicle holds station for the tune and
+while the check square flies, each stopping the procedure at its step with the vehicle safe and nothing of the later steps written."""
 
 from __future__ import annotations
 
@@ -156,9 +156,10 @@ def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
     assert (out / "excite" / "ticks.csv").exists() and not (out / "vehicle.yaml").exists()
 
 
-def test_ctrl_c_while_the_vehicle_holds_station_stops_the_hold_and_leaves_it_safe(tmp_path):
-    """The station hold starts with the fit (step 3) and runs through the tune (step 4): Ctrl-C once it holds (a
-    fit refused just before it is the other ending: stopped at step 3, the hold ended as safely)."""
+def _interrupted_at(tmp_path: Path, step: int, budget: str) -> tuple[subprocess.Popen, str, Path]:
+    """autotune on the short excitation against the 40 %-heavier plant, Ctrl-C (SIGINT) a second after the vehicle
+    is armed again in `step` (its flight running), then the vehicle found safe on a second link: (the process, what
+    it printed, its --out folder)."""
     plant_file, _ = plant(tmp_path)
     bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
                                                speedup=SPEEDUP)
@@ -168,24 +169,41 @@ def test_ctrl_c_while_the_vehicle_holds_station_stops_the_hold_and_leaves_it_saf
     with bridge:
         started = subprocess.Popen([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{bridge.port}",
                                     "--excitation", str(mission), "--box", "2.5,2.5,1.5", "--out", str(out),
-                                    "--budget", "600"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        seen, deadline = [], time.monotonic() + WAIT
+                                    "--budget", budget, "--particles", "10"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        seen, deadline, mark = [], time.monotonic() + WAIT, f"step {step} of 6"
         try:
             for line in started.stdout:
                 seen.append(line)
                 text = "".join(seen)
-                holding = "armed in MANUAL" in text[text.find("step 3 of 6"):] if "step 3 of 6" in text else False
-                if holding or time.monotonic() > deadline:
+                flying = mark in text and "armed in MANUAL" in text[text.find(mark):]
+                if flying or time.monotonic() > deadline:
                     break
-            time.sleep(1.0)                                  # the fit (or the tune) running, the vehicle holding
+            time.sleep(1.0)                                  # the step's work running, the vehicle flying
             started.send_signal(signal.SIGINT)
             seen.append(started.communicate(timeout=WAIT)[0])
         finally:
             if started.poll() is None:
                 started.kill()
         left_safe(checker_port)
-    output = "".join(seen)
-    assert any("step 3 of 6" in s for s in seen), output[-3000:]
+    return started, "".join(seen), out
+
+
+def test_ctrl_c_while_the_vehicle_holds_station_stops_the_hold_and_leaves_it_safe(tmp_path):
+    """The station hold starts with the fit (step 3) and runs through the tune (step 4): Ctrl-C once it holds (a
+    fit refused just before it is the other ending: stopped at step 3, the hold ended as safely)."""
+    started, output, out = _interrupted_at(tmp_path, 3, "600")
+    assert "step 3 of 6" in output, output[-3000:]
     assert started.returncode == 130 or started.returncode == 1 and "stopped at step 3 of 6" in output, output[-3000:]
     assert "stopping: stopped by SIGINT" in output and (out / "station" / "ticks.csv").exists()
     assert not (out / "check-old").exists() and not (out / "gains.yaml").exists()
+
+
+def test_ctrl_c_in_the_check_stops_its_flight_and_keeps_no_gains(tmp_path):
+    """Ctrl-C while the check square flies (step 5): that run's safe stop, the procedure stopped there, no gains
+    kept (the tuned ones stay in tuned-gains.yaml, never in gains.yaml)."""
+    started, output, out = _interrupted_at(tmp_path, 5, "3")
+    assert started.returncode == 130 and "stopped at step 5 of 6 (check)" in output, output[-3000:]
+    assert "stopping: stopped by SIGINT" in output and (out / "check-old" / "ticks.csv").exists()
+    assert (out / "tuned-gains.yaml").exists() and not (out / "gains.yaml").exists()
+    assert not (out / "report.md").exists()
