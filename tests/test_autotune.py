@@ -3,7 +3,8 @@ mass and damping 40 % above it): the whole procedure on the surge, heave and yaw
 (plan, excite, identify, tune while holding station, check, keep) with what each step writes, the fit nearer the
 plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; an abort in the
 excitation (a limit crossed), a fit that cannot be made, Ctrl-C while the vehicle holds station for the tune and
-while the check square flies, each stopping the procedure at its step with the vehicle safe and nothing of the later steps written."""
+while the check square flies, each stopping the procedure at its step with the vehicle safe and nothing of the later
+steps written."""
 
 from __future__ import annotations
 
