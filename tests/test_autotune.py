@@ -1,10 +1,10 @@
 """`rov-mav autotune` end to end against a `rov-mav sim-bridge` process whose vehicle is not the shipped model (added
 mass and damping 40 % above it): the whole procedure on the surge, heave and yaw parts of the shipped excitation
 (plan, excite, identify, tune while holding station, check, keep) with what each step writes, the fit nearer the
-plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; an abort in the
-excitation (a limit crossed), a fit that cannot be made, Ctrl-C while the vehicle holds station for the tune and
-while the check square flies, each stopping the procedure at its step with the vehicle safe and nothing of the later
-steps written."""
+plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; a stop in each step:
+a box the excitation does not fit (the plan), a limit crossed in the excitation, a fit that cannot be made, Ctrl-C
+while the vehicle holds station for the tune and while the check square flies, each stopping the procedure at its
+step with the vehicle safe and nothing of the later steps written."""
 
 from __future__ import annotations
 
@@ -141,6 +141,14 @@ def test_a_dry_run_plans_and_checks_the_vehicle_and_flies_nothing_as_the_autotun
     assert sorted(p.name for p in out.iterdir()) == ["check.yaml", "excite.yaml", "plan.json", "vehicle-check.yaml"]
     assert "step 2" not in done.stdout
     check("autotune.md", "<!-- checked against `rov-mav autotune --dry-run`", done.stdout)
+
+
+def test_a_box_the_excitation_does_not_fit_stops_the_plan_in_one_line_and_flies_nothing(tmp_path):
+    done, out = autotuned_and_left_safe(tmp_path, None, "--box", "2,2,1.5")
+    assert done.returncode == 2, done.stdout[-3000:] + done.stderr
+    assert done.stderr.count("\n") == 1 and "--box 2,2,1.5 is smaller" in done.stderr, done.stderr
+    assert "step 1 of 6" in done.stdout and "step 2" not in done.stdout
+    assert not (out / "excite").exists() and not (out / "plan.json").exists()
 
 
 def test_a_limit_crossed_in_the_excitation_stops_the_procedure_there(tmp_path):
