@@ -17,8 +17,12 @@ def write_report(out: Path, runs: dict, key: str, fits, verdict: str,
                  errors: dict[str, tuple[np.ndarray, np.ndarray]]) -> Path:
     """report.md (and fit.png, check.png beside it) from the check runs' metrics (`runs["old"]`, `runs["new"]`), the
     error they were judged on (`key`), identify's fit per DOF, the verdict, and each check's (t, position error)."""
-    _draw_fit(fits, out / "fit.png")
-    _draw_check(errors, out / "check.png")
+    from rov_mav.offline.plots import plot_fit, plot_timeline     # matplotlib loads only when the report is drawn
+
+    plot_fit(fits, "The fit per degree of freedom", out / "fit.png")
+    plot_timeline([("position error (cm)", {f"{label} gains": (t, 100.0 * error)
+                                            for label, (t, error) in errors.items()})],
+                  "The check square, old gains against new", out / "check.png")
     rows = [f"| {label} | {runs['old'][k] * scale:.2f} | {runs['new'][k] * scale:.2f} |"
             for label, k, scale in CHECK_ROWS if k in runs["old"] and k in runs["new"]]
     rows.append(f"| thruster activity (us/s) | {runs['old']['loop']['pwm_activity_us_per_s']:.0f} | "
@@ -50,38 +54,3 @@ def write_report(out: Path, runs: dict, key: str, fits, verdict: str,
 """
     (out / "report.md").write_text(text)
     return out / "report.md"
-
-
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _draw_fit(fits, path: Path) -> None:
-    plt = _pyplot()
-    dofs = [f for f in fits if np.isfinite(f.r2)]
-    fig, ax = plt.subplots(figsize=(6, 3))
-    ax.bar([f.dof for f in dofs], [f.r2 for f in dofs], color="#1f77b4")
-    ax.set_ylim(min(0.0, *(f.r2 for f in dofs)), 1.0)
-    ax.set_ylabel("R^2 of the force balance")
-    ax.set_title("The fit per degree of freedom")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _draw_check(errors: dict[str, tuple[np.ndarray, np.ndarray]], path: Path) -> None:
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 3))
-    for label, colour in (("old", "#7f7f7f"), ("new", "#1f77b4")):
-        t, error = errors[label]
-        ax.plot(t, 100.0 * error, color=colour, label=f"{label} gains")
-    ax.set_xlabel("mission time (s)")
-    ax.set_ylabel("position error (cm)")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

@@ -173,6 +173,17 @@ def plot_timeline(panels: list[tuple[str, dict[str, tuple[np.ndarray, np.ndarray
     return _save(fig, path)
 
 
+def plot_fit(fits, title: str, path: Path) -> Path:
+    """identify's fit per DOF (`identification.DofFit`): the R^2 of each force balance it could compute."""
+    dofs = [f for f in fits if np.isfinite(f.r2)]
+    fig, ax = plt.subplots(figsize=(6, 3))
+    ax.bar([f.dof for f in dofs], [f.r2 for f in dofs], color="#1f77b4")
+    ax.set_ylim(min(0.0, *(f.r2 for f in dofs)), 1.0)
+    ax.set_ylabel("R^2 of the force balance")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
 def plot_convergence(cost_history: np.ndarray, gain_history: np.ndarray, title: str, path: Path) -> Path:
     """PSO convergence (the counterpart of Fig. IV-1): (i) best cost per iteration, (ii) the 12 gains per iteration."""
     it = np.arange(1, len(cost_history) + 1)
