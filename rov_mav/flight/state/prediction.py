@@ -33,7 +33,8 @@ class CommandHistory:
         """`values` act from t_act on. Commands stamped at or after t_act are dropped: our clock of the vehicle ran
         ahead of it (the vehicle or its link stalled, then the clock was set back by its next sample), so they were
         stamped later than they acted, and the newest command is what acts from t_act (the times stay ascending)."""
-        self._count = int(np.searchsorted(self._times[:self._count], t_act, side="left"))
+        if self._count and self._times[self._count - 1] >= t_act:
+            self._count = int(np.searchsorted(self._times[:self._count], t_act, side="left"))
         if self._count == CAPACITY:
             half = CAPACITY // 2
             self._times[:half] = self._times[half:]
