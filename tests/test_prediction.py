@@ -134,6 +134,19 @@ def test_without_the_prediction_the_same_delay_costs_the_shipped_gains_their_sta
     assert predicted["rms_position_error_m"] < 0.2 * late["rms_position_error_m"]
 
 
+def test_with_nothing_late_the_prediction_changes_nothing(vehicle):
+    """With the state measured every tick and on time there is nothing to carry forward: the offline loop flies the
+    same run, tick for tick, whether the environment predicts or not (the loop compiled without the prediction takes
+    such runs); with the state late, predicting changes the run."""
+    square = load_mission(MISSIONS / "square.yaml")
+    settings = load_settings("fuzzy")
+    on_time = [simulate(square, settings, vehicle, environment=delayed(square, 0.0, predict=p, rate=100.0))
+               for p in (True, False)]
+    assert np.array_equal(on_time[0].eta, on_time[1].eta) and np.array_equal(on_time[0].tau, on_time[1].tau)
+    late = [simulate(square, settings, vehicle, environment=delayed(square, 0.06, predict=p)) for p in (True, False)]
+    assert not np.array_equal(late[0].tau, late[1].tau)
+
+
 def test_on_a_slow_link_the_prediction_keeps_each_commands_instant(vehicle):
     """At --rate 5 the state comes every 0.2 s and commands go out every 20 ms: the runner's predictor keeps them at
     the command period (control_loop.command_period), so a yaw command that turns over inside the horizon, as a law
