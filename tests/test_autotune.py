@@ -2,9 +2,10 @@
 mass and damping 40 % above it): the whole procedure on the surge, heave and yaw parts of the shipped excitation
 (plan, excite, identify, tune while holding station, check, keep) with what each step writes, the fit nearer the
 plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; a stop in each step:
-a box the excitation does not fit (the plan), a limit crossed in the excitation, a fit that cannot be made, Ctrl-C
-while the vehicle holds station for the tune and while the check square flies, each stopping the procedure at its
-step with the vehicle safe and nothing of the later steps written."""
+a box the excitation does not fit (the plan), a limit crossed in the excitation, the pilot taking the vehicle over
+in it, a fit that cannot be made, Ctrl-C while the vehicle holds station for the tune and while the check square
+flies, each stopping the procedure at its step with the vehicle safe (or the pilot's) and nothing of the later steps
+written."""
 
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bridge_helpers import ROV_MAV
+from bridge_helpers import ROV_MAV, Gcs
 from docs_helpers import check
-from run_helpers import bridge_with_checker, checker, fresh
+from mavlink_hub import Hub
+from run_helpers import armed, bridge_with_checker, checker, fresh, servo_functions
 
 from rov_mav.model.vehicle import load_vehicle, save_vehicle
 
@@ -156,6 +158,48 @@ def test_a_limit_crossed_in_the_excitation_stops_the_procedure_there(tmp_path):
     assert done.returncode == 1, done.stdout[-3000:] + done.stderr
     assert "stopped at step 2 of 6 (excite)" in done.stderr and "tracking error" in done.stdout
     assert not (out / "vehicle.yaml").exists() and not (out / "check-old").exists()
+
+
+def test_the_pilot_moving_the_joystick_in_the_excitation_has_the_vehicle_and_the_procedure_stops(tmp_path):
+    """The dive's topology: the pilot's station (joystick at rest, MANUAL_CONTROL at 25 Hz) and autotune on the
+    companion's router, a checker on the bridge's other link. The pilot pushes forward while the excitation flies:
+    that run hands the vehicle over (armed, on its motors, the GCS role back to the pilot) and autotune stops at step
+    2 with the run's status, taking the vehicle back for no later step (no station hold, no fit, no check)."""
+    (tmp_path / "excitation.yaml").write_text(EXCITATION)
+    bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
+    with bridge, Hub(bridge.port) as hub:
+        pilot = Gcs(hub.port, speedup=SPEEDUP, rate=25.0)
+        pilot.connect()
+        pilot.joystick = (0, 0, 500, 0)
+        pilot.start_pump()
+        try:
+            started = subprocess.Popen([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{hub.port}",
+                                        "--excitation", "excitation.yaml", "--box", "2.5,2.5,1.5", "--out", "autotune"],
+                                       cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            seen = []
+            try:
+                for line in started.stdout:
+                    seen.append(line)
+                    if "step 2 of 6" in "".join(seen) and "armed in MANUAL" in line:
+                        break
+                time.sleep(1.0)                                  # the excitation flying
+                pilot.joystick = (600, 0, 500, 0)                # forward
+                seen.append(started.communicate(timeout=WAIT)[0])
+            finally:
+                if started.poll() is None:
+                    started.kill()
+            gcs = checker(checker_port, SPEEDUP)
+            try:
+                assert armed(gcs) and servo_functions(gcs) == list(range(33, 41)), "not left to the pilot"
+                assert gcs.get_param("MAV_GCS_SYSID").param_value == 255
+            finally:
+                gcs.close()
+        finally:
+            pilot.close()
+    output = "".join(seen)
+    assert started.returncode == 3 and "stopped at step 2 of 6 (excite), exit status 3" in output, output[-3000:]
+    assert "pilot takeover" in output and "step 3" not in output, output[-3000:]
+    assert not (tmp_path / "autotune" / "vehicle.yaml").exists() and not (tmp_path / "autotune" / "station").exists()
 
 
 def test_a_flight_a_fit_cannot_be_made_from_stops_at_identify(tmp_path):
