@@ -1,7 +1,7 @@
 """`rov-mav autotune` end to end against a `rov-mav sim-bridge` process whose vehicle is not the shipped model (added
-mass and damping 40 % above it): the whole procedure on the shipped excitation (plan,
-excite, identify, tune while holding station, check, keep) with what each step writes, the fit nearer the
-plant than the prior, the vehicle inside its box and left safe; a dry run that flies nothing; a stop in each step:
+mass and damping 40 % above it): the whole procedure on the shipped excitation (plan, excite, identify, tune while
+holding station, check, keep) with what each step writes, the fit nearer the plant than the prior, the vehicle
+inside its box and left safe; a dry run that flies nothing; a stop in each step:
 a box the excitation does not fit (the plan), a limit crossed in the excitation, the pilot taking the vehicle over
 in it, a fit that cannot be made, Ctrl-C while the vehicle holds station for the tune and while the check square
 flies, each stopping the procedure at its step with the vehicle safe (or the pilot's) and nothing of the later steps
@@ -73,15 +73,42 @@ def plant(directory: Path) -> tuple[Path, object]:
     return path, heavier
 
 
-def autotune(port: int, folder: Path, out: str, excitation: str | None, *args: str) -> subprocess.CompletedProcess:
-    """`rov-mav autotune --out OUT` in `folder` on the bridge's port: with `excitation` (a mission's text) in a
-    2.5 m box, else the shipped identify mission in the default box."""
+def autotune_argv(port: int, folder: Path, out: str, excitation: str | None, *args: str) -> list[str]:
+    """`rov-mav autotune --out OUT` on `port`, to run in `folder`: with `excitation` (a mission's text, written there)
+    in a 2.5 m box, else the shipped identify mission in the default box."""
     own = []
     if excitation is not None:
         (folder / "excitation.yaml").write_text(excitation)
         own = ["--excitation", "excitation.yaml", "--box", "2.5,2.5,1.5"]
-    return subprocess.run([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{port}", *own, "--out", out, *args],
-                          cwd=folder, capture_output=True, text=True, timeout=WAIT)
+    return [ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{port}", *own, "--out", out, *args]
+
+
+def autotune(port: int, folder: Path, out: str, excitation: str | None, *args: str) -> subprocess.CompletedProcess:
+    """`autotune_argv`, run to its end."""
+    return subprocess.run(autotune_argv(port, folder, out, excitation, *args), cwd=folder, capture_output=True,
+                          text=True, timeout=WAIT)
+
+
+def acted_on_in_flight(port: int, folder: Path, step: int, act, *args: str) -> tuple[subprocess.Popen, str]:
+    """autotune on the short excitation (--out autotune in `folder`), act(process) a second after the vehicle is
+    armed again in `step` (its flight running), then autotune run to its end: (the process, what it printed)."""
+    started = subprocess.Popen(autotune_argv(port, folder, "autotune", EXCITATION, *args), cwd=folder,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    seen, deadline, mark = [], time.monotonic() + WAIT, f"step {step} of 6"
+    try:
+        for line in started.stdout:
+            seen.append(line)
+            text = "".join(seen)
+            flying = mark in text and "armed in MANUAL" in text[text.find(mark):]
+            if flying or time.monotonic() > deadline:
+                break
+        time.sleep(1.0)                                  # the step's work running, the vehicle flying
+        act(started)
+        seen.append(started.communicate(timeout=WAIT)[0])
+    finally:
+        if started.poll() is None:
+            started.kill()
+    return started, "".join(seen)
 
 
 def autotuned_and_left_safe(tmp_path: Path, excitation: str | None, *args: str, bridge: tuple[str, ...] = (),
@@ -193,7 +220,6 @@ def test_the_pilot_moving_the_joystick_in_the_excitation_has_the_vehicle_and_the
     companion's router, a checker on the bridge's other link. The pilot pushes forward while the excitation flies:
     that run hands the vehicle over (armed, on its motors, the GCS role back to the pilot) and autotune stops at step
     2 with the run's status, taking the vehicle back for no later step (no station hold, no fit, no check)."""
-    (tmp_path / "excitation.yaml").write_text(EXCITATION)
     bridge, checker_port = bridge_with_checker(tmp_path, "--start-depth", "1.3", speedup=SPEEDUP)
     with bridge, Hub(bridge.port) as hub:
         pilot = Gcs(hub.port, speedup=SPEEDUP, rate=25.0)
@@ -201,21 +227,10 @@ def test_the_pilot_moving_the_joystick_in_the_excitation_has_the_vehicle_and_the
         pilot.joystick = (0, 0, 500, 0)
         pilot.start_pump()
         try:
-            started = subprocess.Popen([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{hub.port}",
-                                        "--excitation", "excitation.yaml", "--box", "2.5,2.5,1.5", "--out", "autotune"],
-                                       cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            seen = []
-            try:
-                for line in started.stdout:
-                    seen.append(line)
-                    if "step 2 of 6" in "".join(seen) and "armed in MANUAL" in line:
-                        break
-                time.sleep(1.0)                                  # the excitation flying
-                pilot.joystick = (600, 0, 500, 0)                # forward
-                seen.append(started.communicate(timeout=WAIT)[0])
-            finally:
-                if started.poll() is None:
-                    started.kill()
+            def push_forward(_):
+                pilot.joystick = (600, 0, 500, 0)
+
+            started, output = acted_on_in_flight(hub.port, tmp_path, 2, push_forward)
             gcs = checker(checker_port, SPEEDUP)
             try:
                 assert armed(gcs) and servo_functions(gcs) == list(range(33, 41)), "not left to the pilot"
@@ -224,7 +239,6 @@ def test_the_pilot_moving_the_joystick_in_the_excitation_has_the_vehicle_and_the
                 gcs.close()
         finally:
             pilot.close()
-    output = "".join(seen)
     assert started.returncode == 3 and "stopped at step 2 of 6 (excite), exit status 3" in output, output[-3000:]
     assert "pilot takeover" in output and "step 3" not in output, output[-3000:]
     assert not (tmp_path / "autotune" / "vehicle.yaml").exists() and not (tmp_path / "autotune" / "station").exists()
@@ -244,30 +258,11 @@ def _interrupted_at(tmp_path: Path, step: int, budget: str) -> tuple[subprocess.
     plant_file, _ = plant(tmp_path)
     bridge, checker_port = bridge_with_checker(tmp_path, "--vehicle", str(plant_file), "--start-depth", "1.3",
                                                speedup=SPEEDUP)
-    out = tmp_path / "autotune"
-    mission = tmp_path / "excitation.yaml"
-    mission.write_text(EXCITATION)
     with bridge:
-        started = subprocess.Popen([ROV_MAV, "autotune", "--target", f"udpout:127.0.0.1:{bridge.port}",
-                                    "--excitation", str(mission), "--box", "2.5,2.5,1.5", "--out", str(out),
-                                    "--budget", budget, "--particles", "10"],
-                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        seen, deadline, mark = [], time.monotonic() + WAIT, f"step {step} of 6"
-        try:
-            for line in started.stdout:
-                seen.append(line)
-                text = "".join(seen)
-                flying = mark in text and "armed in MANUAL" in text[text.find(mark):]
-                if flying or time.monotonic() > deadline:
-                    break
-            time.sleep(1.0)                                  # the step's work running, the vehicle flying
-            started.send_signal(signal.SIGINT)
-            seen.append(started.communicate(timeout=WAIT)[0])
-        finally:
-            if started.poll() is None:
-                started.kill()
+        started, output = acted_on_in_flight(bridge.port, tmp_path, step, lambda p: p.send_signal(signal.SIGINT),
+                                             "--budget", budget, "--particles", "10")
         left_safe(checker_port)
-    return started, "".join(seen), out
+    return started, output, tmp_path / "autotune"
 
 
 def test_ctrl_c_while_the_vehicle_holds_station_stops_the_hold_and_leaves_it_safe(tmp_path):
